@@ -1,0 +1,7 @@
+"""dance3d: turn dance videos into a 3D dance-motion corpus synced to music.
+
+Every piece of logic lives in this package and is testable alone; the modules in
+``stages/`` are thin DVC entry points around it.
+"""
+
+__version__ = "0.1.0"

@@ -1,0 +1,84 @@
+"""One interface for running a function over work items: inline, threads or processes.
+
+Each item's outcome comes back as an ``Outcome`` (value or error), so one bad item
+never stops the others. Per-worker state (e.g. ONNX sessions) is built once per worker
+by ``initializer``, not once per item.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import multiprocessing as mp
+import traceback
+from dataclasses import dataclass
+from typing import Any, Callable, Iterable, Iterator, Sequence
+
+from tqdm import tqdm
+
+
+@dataclass(frozen=True)
+class Outcome:
+    item: Any
+    value: Any = None
+    error_class: str = ""
+    error_message: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return not self.error_class
+
+
+def _call(fn: Callable[[Any], Any], item: Any) -> Outcome:
+    try:
+        return Outcome(item, fn(item))
+    except Exception as exc:  # isolate the item; the stage decides what a failure costs
+        message = str(exc) or traceback.format_exception_only(type(exc), exc)[-1].strip()
+        return Outcome(item, error_class=type(exc).__name__, error_message=message)
+
+
+def run_items(
+    fn: Callable[[Any], Any],
+    items: Sequence[Any],
+    *,
+    workers: int = 1,
+    kind: str = "process",
+    initializer: Callable[..., None] | None = None,
+    initargs: Iterable[Any] = (),
+    desc: str = "",
+    unit: str = "item",
+) -> Iterator[Outcome]:
+    """Yield one Outcome per item, in completion order, with a progress bar.
+
+    ``kind`` is "process" (CPU-bound work), "thread" (I/O-bound work such as downloads);
+    ``workers <= 1`` runs inline in this process.
+    """
+    bar = tqdm(total=len(items), desc=desc, unit=unit, disable=not items, leave=True)
+    try:
+        if workers <= 1 or len(items) <= 1:
+            if initializer is not None:
+                initializer(*initargs)
+            for item in items:
+                outcome = _call(fn, item)
+                bar.update()
+                yield outcome
+            return
+        if kind == "thread":
+            pool: cf.Executor = cf.ThreadPoolExecutor(workers, initializer=initializer, initargs=tuple(initargs))
+        elif kind == "process":
+            # spawn: no inherited ONNX/torch thread pools or locks from the parent.
+            pool = cf.ProcessPoolExecutor(
+                workers, mp_context=mp.get_context("spawn"), initializer=initializer, initargs=tuple(initargs)
+            )
+        else:
+            raise ValueError(f"unknown executor kind {kind!r} (process or thread)")
+        with pool:
+            futures = [pool.submit(_call, fn, item) for item in items]
+            try:
+                for future in cf.as_completed(futures):
+                    bar.update()
+                    yield future.result()
+            finally:
+                for future in futures:
+                    future.cancel()
+    finally:
+        bar.close()

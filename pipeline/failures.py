@@ -1,0 +1,50 @@
+"""Failure accounting shared by every stage: ``_failures.parquet`` and the failure ratio."""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import pyarrow as pa
+
+from pipeline.errors import Dance3dError
+from pipeline.storage import write_parquet
+
+FAILURES_FILE = "_failures.parquet"
+
+
+@dataclass(frozen=True)
+class Failure:
+    item: str
+    stage: str
+    error_class: str
+    message: str
+    time: str = ""
+
+
+class StageFailed(Dance3dError):
+    """Too many items failed for the stage to count as done."""
+
+
+def now() -> str:
+    return dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
+
+
+def write_failures(folder: Path, stage: str, failures: list[Failure]) -> Path:
+    """Write (or clear) the stage's failure table; always written so stale rows vanish."""
+    columns = ["item", "stage", "error_class", "message", "time"]
+    rows = [asdict(f) for f in sorted(failures, key=lambda f: f.item)]
+    table = pa.table({c: pa.array([r[c] for r in rows], pa.string()) for c in columns})
+    path = Path(folder) / FAILURES_FILE
+    write_parquet(table, path, schema_version=1, extra={"stage": stage})
+    return path
+
+
+def check_failure_ratio(stage: str, failed: int, total: int, max_ratio: float) -> None:
+    """Raise StageFailed when the failed share exceeds ``max_ratio``."""
+    if total and failed / total > max_ratio:
+        raise StageFailed(
+            f"{stage}: {failed} of {total} items failed ({failed / total:.0%} > max_failure_ratio "
+            f"{max_ratio:.0%}); see the stage's {FAILURES_FILE}"
+        )

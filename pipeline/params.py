@@ -1,0 +1,36 @@
+"""params.yaml: every tunable number in one place, read per stage."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from pipeline.errors import InputError
+
+COMMON_KEYS = ("workers", "executor", "max_failure_ratio")
+
+
+def load_params(path: str | Path = "params.yaml") -> dict[str, Any]:
+    path = Path(path)
+    if not path.exists():
+        raise InputError(path, "params file not found (run from the project root)")
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as exc:
+        line = getattr(getattr(exc, "problem_mark", None), "line", None)
+        raise InputError(path, f"invalid YAML: {exc}", None if line is None else line + 1) from None
+    if not isinstance(data, dict):
+        raise InputError(path, "top level must be a mapping of sections")
+    return data
+
+
+def stage_params(params: dict[str, Any], stage: str) -> dict[str, Any]:
+    """A stage's section, with the shared ``common`` keys filled in where the stage has none."""
+    common = params.get("common") or {}
+    section = dict(params.get(stage) or {})
+    for key in COMMON_KEYS:
+        if key in common and key not in section:
+            section[key] = common[key]
+    return section

@@ -1,0 +1,96 @@
+"""``annotations/segments.csv``: the dance segments of each video.
+
+Columns: ``video_id, start, end`` and optional ``label, note``. Times are seconds on the
+source video's clock (``12.5`` or ``HH:MM:SS.mmm``); ``end`` is exclusive. Segments of a
+video are numbered by start time: ``<video_id>_000``, ``<video_id>_001``, ...
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping
+
+from pipeline.errors import InputError, InputErrors
+from pipeline.ids import check_id, segment_id
+from pipeline.tables import read_csv
+from pipeline.timecode import parse_time
+
+REQUIRED = ("video_id", "start", "end")
+OPTIONAL = ("label", "note")
+UNANNOTATED_POLICIES = ("skip", "whole")
+END_TOLERANCE = 0.05  # seconds an end may pass the video's end (container rounding); it is clamped
+
+
+@dataclass(frozen=True)
+class SegmentSpec:
+    segment_id: str
+    video_id: str
+    start: float
+    end: float
+    label: str = ""
+    note: str = ""
+    line: int | None = None  # annotation line; None for whole-video segments
+
+
+def plan_segments(
+    path: Path,
+    durations: Mapping[str, float],
+    *,
+    known_videos: set[str] | None = None,
+    unannotated: str = "skip",
+) -> list[SegmentSpec]:
+    """Validate segments.csv against the downloaded videos and list the segments to cut.
+
+    ``durations`` maps each *available* video to its duration; ``known_videos`` are all
+    ids in the sources (a row for a known video whose download failed is skipped, not an
+    error). Every problem in the file is reported at once as InputErrors.
+    """
+    if unannotated not in UNANNOTATED_POLICIES:
+        raise ValueError(f"trim.unannotated must be one of {UNANNOTATED_POLICIES}, not {unannotated!r}")
+    known = set(known_videos or ()) | set(durations)
+    rows = read_csv(path, REQUIRED, OPTIONAL) if Path(path).exists() else []
+    errors: list[InputError] = []
+    by_video: dict[str, list[tuple[float, float, object]]] = defaultdict(list)
+    for row in rows:
+        video_id = row.get("video_id")
+        try:
+            check_id(video_id, "video_id")
+        except ValueError as exc:
+            errors.append(InputError(path, str(exc), row.line))
+            continue
+        if video_id not in known:
+            errors.append(InputError(path, f"unknown video {video_id!r} (not in manifests/sources.csv)", row.line))
+            continue
+        try:
+            start, end = parse_time(row.get("start")), parse_time(row.get("end"))
+        except ValueError as exc:
+            errors.append(InputError(path, str(exc), row.line))
+            continue
+        if end <= start:
+            errors.append(InputError(path, f"end {end:.3f} s is not after start {start:.3f} s", row.line))
+            continue
+        if video_id not in durations:
+            continue  # its download failed: the ledger already says why
+        duration = durations[video_id]
+        if start >= duration or end > duration + END_TOLERANCE:
+            errors.append(InputError(path, f"segment {start:.3f}-{end:.3f} s passes the end of {video_id} "
+                                           f"({duration:.3f} s)", row.line))
+            continue
+        by_video[video_id].append((start, min(end, duration), row))
+    plan: list[SegmentSpec] = []
+    for video_id in sorted(durations):
+        spans = sorted(by_video.get(video_id, []), key=lambda s: s[0])
+        for (s0, e0, r0), (s1, e1, r1) in zip(spans, spans[1:]):
+            if s1 < e0:
+                errors.append(InputError(path, f"segment {s1:.3f}-{e1:.3f} s overlaps line {r0.line} "
+                                               f"({s0:.3f}-{e0:.3f} s) of the same video", r1.line))
+        if not spans and unannotated == "whole" and video_id not in by_video:
+            plan.append(SegmentSpec(segment_id(video_id, 0), video_id, 0.0, durations[video_id], "", "whole video"))
+        for k, (start, end, row) in enumerate(spans):
+            plan.append(SegmentSpec(segment_id(video_id, k), video_id, start, end,
+                                    row.get("label"), row.get("note"), row.line))
+    if errors:
+        raise InputErrors(sorted(errors, key=lambda e: e.line or 0))
+    return plan

@@ -1,0 +1,42 @@
+"""``dance3d status``: a readable summary of what the pipeline has produced so far."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pyarrow.parquet as pq
+
+from pipeline.failures import FAILURES_FILE
+
+
+def summarise(root: Path) -> str:
+    lines: list[str] = []
+    ledger = root / "data/raw/ledger.parquet"
+    if ledger.exists():
+        rows = pq.read_table(ledger).to_pylist()
+        counts: dict[str, int] = {}
+        for r in rows:
+            counts[r["status"]] = counts.get(r["status"], 0) + 1
+        minutes = sum(r["duration"] for r in rows if r["status"] == "ok") / 60
+        lines.append(f"download: {len(rows)} sources, " + ", ".join(f"{n} {s}" for s, n in sorted(counts.items()))
+                     + f"; {minutes:.1f} min of video")
+        for r in rows:
+            if r["status"] != "ok":
+                lines.append(f"  {r['status']:9} {r['video_id'] or '-':20} {r['error_class']}: {r['error_message']}")
+    else:
+        lines.append("download: not run yet (dance3d run download, or dvc repro)")
+    index = root / "data/segments/index.parquet"
+    if index.exists():
+        segs = pq.read_table(index).to_pylist()
+        minutes = sum(s["frames"] / s["fps"] for s in segs) / 60
+        videos = len({s["video_id"] for s in segs})
+        silent = sum(1 for s in segs if not s["has_audio"])
+        lines.append(f"trim: {len(segs)} segments from {videos} videos, {minutes:.1f} min; {silent} without audio")
+    else:
+        lines.append("trim: not run yet")
+    for failures in sorted((root / "data").glob(f"*/{FAILURES_FILE}")) if (root / "data").exists() else []:
+        rows = pq.read_table(failures).to_pylist()
+        if rows:
+            lines.append(f"failures in {failures.parent.name} ({len(rows)}):")
+            lines.extend(f"  {r['item']}: {r['error_class']}: {r['message']}" for r in rows)
+    return "\n".join(lines)

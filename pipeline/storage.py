@@ -1,0 +1,101 @@
+"""Atomic writes, Parquet files that carry their provenance, and content fingerprints."""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Iterator, Mapping
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+META_KEY = b"dance3d"
+
+
+@contextlib.contextmanager
+def atomic_path(path: Path) -> Iterator[Path]:
+    """Yield a temporary path next to ``path``; rename it into place only on success.
+
+    A process killed half-way leaves at most a ``.tmp-*`` file, never a truncated output.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".tmp-{path.stem}-", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        yield tmp
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600 files; outputs are ordinary files
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def remove_stale_temps(folder: Path) -> int:
+    """Delete temp files left by a killed run; returns how many were removed."""
+    if not folder.exists():
+        return 0
+    removed = 0
+    for tmp in folder.glob(".tmp-*"):
+        tmp.unlink(missing_ok=True)
+        removed += 1
+    return removed
+
+
+def sha256_file(path: Path, chunk: int = 1 << 20) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        while block := f.read(chunk):
+            h.update(block)
+    return h.hexdigest()
+
+
+def fingerprint(*parts: Any) -> str:
+    """A stable short hash of JSON-serialisable parts (inputs' hashes, params)."""
+    blob = json.dumps(parts, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(blob.encode()).hexdigest()[:20]
+
+
+def write_parquet(
+    table: pa.Table,
+    path: Path,
+    *,
+    schema_version: int,
+    params: Mapping[str, Any] | None = None,
+    inputs: Mapping[str, str] | None = None,
+    extra: Mapping[str, Any] | None = None,
+    compression: str = "zstd",
+    row_group_size: int | None = None,
+) -> None:
+    """Write ``table`` atomically with dance3d provenance in its key-value metadata."""
+    meta = {
+        "schema_version": schema_version,
+        "params": dict(params or {}),
+        "inputs": dict(inputs or {}),
+        **dict(extra or {}),
+    }
+    existing = table.schema.metadata or {}
+    # pandas metadata embeds nothing time-dependent, but drop it: the schema is ours.
+    existing = {k: v for k, v in existing.items() if k != b"pandas"}
+    schema_meta = {**existing, META_KEY: json.dumps(meta, sort_keys=True, default=str).encode()}
+    table = table.replace_schema_metadata(schema_meta)
+    with atomic_path(path) as tmp:
+        pq.write_table(table, tmp, compression=compression, row_group_size=row_group_size)
+
+
+def read_meta(path: Path) -> dict[str, Any]:
+    """The dance3d metadata of a Parquet file ({} if it has none)."""
+    schema = pq.read_schema(path)
+    raw = (schema.metadata or {}).get(META_KEY)
+    return json.loads(raw) if raw else {}

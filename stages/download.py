@@ -1,0 +1,136 @@
+"""download stage: manifests/sources.csv -> data/raw/<video_id>.<ext>, .info.json, ledger.parquet."""
+
+from __future__ import annotations
+
+import logging
+import shutil
+import sys
+import threading
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from pipeline.download import DownloadOptions, LedgerRow, download_source
+from pipeline.errors import RateLimitedError
+from pipeline.executor import run_items
+from pipeline.failures import Failure, check_failure_ratio, now, write_failures
+from pipeline.params import load_params, stage_params
+from pipeline.sources import Source, read_sources
+from pipeline.stage import run_stage, setup_logging
+from pipeline.storage import remove_stale_temps, write_parquet
+
+log = logging.getLogger("dance3d.download")
+
+SOURCES = Path("manifests/sources.csv")
+RAW = Path("data/raw")
+LEDGER = "ledger.parquet"
+LEDGER_SCHEMA = pa.schema(
+    [
+        ("url", pa.string()), ("video_id", pa.string()), ("status", pa.string()),
+        ("error_class", pa.string()), ("error_message", pa.string()),
+        ("path", pa.string()), ("info_path", pa.string()), ("size", pa.int64()), ("sha256", pa.string()),
+        ("fps", pa.float64()), ("duration", pa.float64()), ("width", pa.int32()), ("height", pa.int32()),
+        ("has_audio", pa.bool_()), ("title", pa.string()), ("channel", pa.string()), ("uploader", pa.string()),
+        ("upload_date", pa.string()), ("licence", pa.string()), ("style", pa.string()),
+        ("tags", pa.list_(pa.string())), ("attempts", pa.int32()),
+    ]
+)
+
+
+def read_ledger(raw_dir: Path) -> dict[str, dict]:
+    """The previous ledger by url ({} when there is none)."""
+    path = raw_dir / LEDGER
+    if not path.exists():
+        return {}
+    return {row["url"]: row for row in pq.read_table(path).to_pylist()}
+
+
+def _is_done(row: dict | None, raw_dir: Path) -> bool:
+    if not row or row["status"] != "ok" or not row["path"]:
+        return False
+    media = raw_dir / row["path"]
+    return media.is_file() and media.stat().st_size == row["size"]
+
+
+def _write_ledger(raw_dir: Path, sources: list[Source], rows: dict[str, dict], params: dict) -> None:
+    ordered = [rows[s.url] for s in sources if s.url in rows]
+    table = pa.Table.from_pylist(ordered, schema=LEDGER_SCHEMA)
+    write_parquet(table, raw_dir / LEDGER, schema_version=1, params=params)
+
+
+def run(root: Path) -> None:
+    params = stage_params(load_params(root / "params.yaml"), "download")
+    opts = DownloadOptions(
+        retries=int(params.get("retries", 3)),
+        backoff_seconds=float(params.get("backoff_seconds", 2.0)),
+        sleep_interval=float(params.get("sleep_interval", 0.0)),
+        format=str(params.get("format", DownloadOptions.format)),
+        allow_file_urls=bool(params.get("allow_file_urls", True)),
+        socket_timeout=float(params.get("socket_timeout", 30.0)),
+    )
+    sources = read_sources(root / SOURCES, base_dir=root, allow_file_urls=opts.allow_file_urls)
+    raw_dir = root / RAW
+    raw_dir.mkdir(parents=True, exist_ok=True)
+    remove_stale_temps(raw_dir)
+    previous = read_ledger(raw_dir)
+    rows = {s.url: previous[s.url] for s in sources if _is_done(previous.get(s.url), raw_dir)}
+    todo = [s for s in sources if s.url not in rows]
+    log.info("%d sources: %d already downloaded, %d to fetch", len(sources), len(rows), len(todo))
+    taken = {r["video_id"] for r in rows.values()} | {s.video_id for s in sources if s.video_id}
+    stop = threading.Event()
+    lock = threading.Lock()
+
+    def fetch(source: Source) -> dict:
+        if stop.is_set():
+            return LedgerRow(url=source.url, video_id=source.video_id or "", status="skipped",
+                             error_class="rate_limited", error_message="not attempted: the site was rate limiting us",
+                             channel=source.channel, licence=source.licence, style=source.style).as_dict()
+        try:
+            with lock:
+                snapshot = set(taken)
+            row = download_source(source, raw_dir, opts, snapshot)
+        except RateLimitedError as exc:
+            stop.set()
+            return LedgerRow(url=source.url, video_id=source.video_id or "", status="throttled",
+                             error_class="rate_limited", error_message=str(exc),
+                             channel=source.channel, licence=source.licence, style=source.style).as_dict()
+        with lock:
+            taken.add(row.video_id)
+        return row.as_dict()
+
+    failures: list[Failure] = []
+    for outcome in run_items(fetch, todo, workers=int(params.get("workers", 1)), kind="thread",
+                             desc="download", unit="video"):
+        source: Source = outcome.item
+        if outcome.ok:
+            row = outcome.value
+        else:  # a bug, not a bad source: still one row, never a crash
+            row = LedgerRow(url=source.url, video_id=source.video_id or "", status="failed",
+                            error_class=outcome.error_class, error_message=outcome.error_message).as_dict()
+        rows[source.url] = row
+        if row["status"] == "failed":
+            failures.append(Failure(f"{SOURCES}:{source.line}", "download", row["error_class"],
+                                    f"{source.url}: {row['error_message']}", now()))
+            log.warning("%s:%d: %s: %s", SOURCES, source.line, source.url, row["error_message"])
+        _write_ledger(raw_dir, sources, rows, params)  # after every item: nothing done is lost
+    _write_ledger(raw_dir, sources, rows, params)
+    shutil.rmtree(raw_dir / ".incoming", ignore_errors=True)
+    write_failures(raw_dir, "download", failures)
+    ok = sum(1 for r in rows.values() if r["status"] == "ok")
+    log.info("ledger: %d ok, %d failed, of %d sources", ok, len(failures), len(sources))
+    if stop.is_set():
+        raise RateLimitedError(
+            f"the site is rate limiting downloads ({ok} of {len(sources)} done); "
+            "wait a while (or raise download.sleep_interval) and re-run: finished videos are kept"
+        )
+    check_failure_ratio("download", len(failures), len(sources), float(params.get("max_failure_ratio", 0.5)))
+
+
+def main() -> int:
+    setup_logging()
+    return run_stage("download", run)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,78 @@
+"""Shared fixtures: real assets through environment variables, small media made on the fly.
+
+Real media, models and motion capture are found through DANCE3D_MEDIA, DANCE3D_MODELS and
+DANCE3D_MOCAP. Where one is missing a test skips with the reason, unless
+DANCE3D_REQUIRE_ASSETS=1 (set by CI), which turns that skip into a failure.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from pipeline.media import ffmpeg_exe
+
+PROJECT = Path(__file__).resolve().parents[1]
+
+
+def _asset_dir(variable: str, must_contain: str) -> Path:
+    value = os.environ.get(variable)
+    path = Path(value) if value else None
+    if path is None or not (path / must_contain).exists():
+        reason = f"{variable} is not set or lacks {must_contain} (point it at the real assets)"
+        if os.environ.get("DANCE3D_REQUIRE_ASSETS") == "1":
+            pytest.fail(reason + "; DANCE3D_REQUIRE_ASSETS=1 forbids skipping")
+        pytest.skip(reason)
+    return path
+
+
+@pytest.fixture(scope="session")
+def media_dir() -> Path:
+    return _asset_dir("DANCE3D_MEDIA", "videos/dance_single_music_musepose.mp4")
+
+
+@pytest.fixture(scope="session")
+def dance_clip(media_dir: Path) -> Path:
+    return media_dir / "videos/dance_single_music_musepose.mp4"
+
+
+def ffmpeg(*args: str) -> None:
+    """Run the wheel's ffmpeg for building test fixtures."""
+    subprocess.run([ffmpeg_exe(), "-hide_banner", "-loglevel", "error", "-y", *args], check=True)
+
+
+def make_test_video(path: Path, *, seconds: float = 2.0, fps: str = "25", size: str = "320x240",
+                    audio: bool = True) -> Path:
+    """A synthetic H.264 test-pattern video (with a 440 Hz tone when ``audio``)."""
+    args = ["-f", "lavfi", "-i", f"testsrc2=size={size}:rate={fps}:duration={seconds}"]
+    if audio:
+        args += ["-f", "lavfi", "-i", f"sine=frequency=440:sample_rate=44100:duration={seconds}"]
+    args += ["-c:v", "libx264", "-preset", "ultrafast", "-pix_fmt", "yuv420p"]
+    if audio:
+        args += ["-c:a", "aac", "-shortest"]
+    ffmpeg(*args, str(path))
+    return path
+
+
+@pytest.fixture
+def project(tmp_path: Path) -> Path:
+    """An empty dance3d project (params.yaml copied from the repo) to run stages in."""
+    root = tmp_path / "project"
+    (root / "manifests").mkdir(parents=True)
+    (root / "annotations").mkdir()
+    shutil.copy(PROJECT / "params.yaml", root / "params.yaml")
+    return root
+
+
+def set_params(root: Path, section: str, **values) -> None:
+    """Override keys of one params.yaml section in a test project."""
+    import yaml
+
+    path = root / "params.yaml"
+    params = yaml.safe_load(path.read_text())
+    params.setdefault(section, {}).update(values)
+    path.write_text(yaml.safe_dump(params, sort_keys=False))

@@ -1,0 +1,71 @@
+"""Identifiers, times and human-edited CSV files."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from pipeline.errors import InputError
+from pipeline.ids import check_id, id_path, segment_id, slug_id
+from pipeline.tables import neutralise_cell, read_csv, write_csv
+from pipeline.timecode import format_time, parse_time
+
+
+@pytest.mark.parametrize("bad", ["../x", "/abs", "a b", "a\x00b", "", "x" * 101, "é", "a.b"])
+def test_unsafe_ids_are_refused(bad: str) -> None:
+    with pytest.raises(ValueError, match="not a safe identifier"):
+        check_id(bad)
+    with pytest.raises(ValueError):
+        id_path(Path("data"), bad, ".mp4")
+
+
+def test_safe_ids_and_derived_names() -> None:
+    assert check_id("Ab_9-z") == "Ab_9-z"
+    assert segment_id("vid", 7) == "vid_007"
+    assert slug_id("my video (1).mp4") == "my_video_1_mp4"
+    assert slug_id("../..") == "video"
+
+
+@pytest.mark.parametrize("text, seconds", [
+    ("12.5", 12.5), ("0", 0.0), ("01:02.250", 62.25), ("00:01:02.250", 62.25), ("1:00:00", 3600.0),
+])
+def test_times_parse_from_seconds_or_clock(text: str, seconds: float) -> None:
+    assert parse_time(text) == pytest.approx(seconds)
+
+
+@pytest.mark.parametrize("text", ["abc", "-1", "00:61:00", "1:2:3:4", "nan", "inf", ""])
+def test_bad_times_say_why(text: str) -> None:
+    with pytest.raises(ValueError):
+        parse_time(text)
+
+
+def test_format_time_is_the_qc_timecode() -> None:
+    assert format_time(3723.0456) == "01:02:03.046"
+
+
+def test_read_csv_reports_file_and_line(tmp_path: Path) -> None:
+    path = tmp_path / "x.csv"
+    path.write_text("# comment\n\na,b\n1,2\n3\n")
+    with pytest.raises(InputError) as err:
+        read_csv(path, ["a", "b"])
+    assert str(err.value) == f"{path}:5: expected 2 fields, found 1"
+
+
+def test_read_csv_header_problems(tmp_path: Path) -> None:
+    path = tmp_path / "x.csv"
+    path.write_text("a,c\n1,2\n")
+    with pytest.raises(InputError, match=r"x\.csv:1: missing column\(s\) b"):
+        read_csv(path, ["a", "b"], ["c"])
+    path.write_text("a,b,zzz\n1,2,3\n")
+    with pytest.raises(InputError, match=r"x\.csv:1: unknown column\(s\) zzz"):
+        read_csv(path, ["a", "b"])
+
+
+def test_formula_cells_are_neutralised_on_write(tmp_path: Path) -> None:
+    assert neutralise_cell("=HYPERLINK(1)") == "'=HYPERLINK(1)"
+    assert neutralise_cell("-1.5") == "-1.5"
+    assert neutralise_cell("@x") == "'@x"
+    path = tmp_path / "out.csv"
+    write_csv(path, ["a", "note"], [[1, "+cmd"], [2, "fine"]])
+    assert path.read_text() == "a,note\n1,'+cmd\n2,fine\n"

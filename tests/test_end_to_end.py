@@ -1,0 +1,58 @@
+"""`dvc repro` on the demo sources, in a temporary copy of the project."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+
+from tests.conftest import PROJECT
+
+
+def _copy_project(dest: Path) -> Path:
+    files = subprocess.run(["git", "ls-files", "-co", "--exclude-standard"], cwd=PROJECT,
+                           capture_output=True, text=True, check=True).stdout.split()
+    for name in files:
+        src = PROJECT / name
+        if src.is_file() and not name.startswith(("data/", "demo/media")):
+            (dest / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dest / name)
+    subprocess.run(["git", "init", "-q"], cwd=dest, check=True)
+    return dest
+
+
+def _dvc(root: Path, *args: str) -> subprocess.CompletedProcess:
+    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
+    return subprocess.run([str(Path(sys.executable).parent / "dvc"), *args], cwd=root, env=env,
+                          capture_output=True, text=True)
+
+
+@pytest.mark.slow
+def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path) -> None:
+    root = _copy_project(tmp_path / "dance3d")
+    (root / "demo").mkdir(exist_ok=True)
+    (root / "demo/media").symlink_to(media_dir / "videos")
+
+    first = _dvc(root, "repro")
+    assert first.returncode == 0, first.stderr[-3000:]
+
+    ledger = pq.read_table(root / "data/raw/ledger.parquet").to_pylist()
+    assert [(r["video_id"], r["status"]) for r in ledger] == [
+        ("musepose_dance", "ok"), ("taiji", "ok"), ("raga_trio", "ok"), ("solo_dance", "ok")]
+    index = pq.read_table(root / "data/segments/index.parquet").to_pylist()
+    assert [r["segment_id"] for r in index] == ["musepose_dance_000", "solo_dance_000", "solo_dance_001", "taiji_000"]
+    assert all((root / "data/segments" / r["path"]).stat().st_size > 0 for r in index)
+
+    second = _dvc(root, "repro")
+    assert second.returncode == 0, second.stderr[-3000:]
+    assert "didn't change, skipping" in second.stdout or "up to date" in second.stdout
+
+    status = subprocess.run([sys.executable, "-m", "pipeline.cli", "status"], cwd=root,
+                            capture_output=True, text=True, check=True).stdout
+    assert "download: 4 sources, 4 ok" in status
+    assert "trim: 4 segments from 3 videos" in status
