@@ -1,0 +1,92 @@
+"""The loop every per-item stage shares: skip what is up to date, run the rest through the
+executor, record failures, drop outputs of items that no longer exist, check the ratio.
+"""
+
+from __future__ import annotations
+
+import functools
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable
+
+from pipeline.executor import run_items
+from pipeline.failures import Failure, check_failure_ratio, now, write_failures
+from pipeline.storage import read_meta, remove_stale_temps
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class WorkItem:
+    item_id: str
+    fingerprint: str          # of the inputs and params that make this item's output
+    outputs: tuple[Path, ...]  # the first is a Parquet file carrying the fingerprint in its metadata
+    payload: Any              # what the worker function needs
+
+
+@dataclass
+class StageReport:
+    done: dict[str, Any] = field(default_factory=dict)   # item_id -> worker result (new work)
+    skipped: list[str] = field(default_factory=list)     # up to date, not redone
+    failures: list[Failure] = field(default_factory=list)
+
+
+def is_up_to_date(item: WorkItem) -> bool:
+    if not all(p.exists() for p in item.outputs):
+        return False
+    try:
+        return read_meta(item.outputs[0]).get("fingerprint") == item.fingerprint
+    except Exception:  # unreadable output: redo it
+        return False
+
+
+def run_item_stage(
+    stage: str,
+    items: list[WorkItem],
+    fn: Callable[[Any], Any],
+    *,
+    out_dirs: Iterable[Path],
+    params: dict,
+    kind: str = "process",
+    initializer: Callable[..., None] | None = None,
+    initargs: tuple = (),
+    unit: str = "segment",
+) -> StageReport:
+    out_dirs = list(out_dirs)
+    for folder in out_dirs:
+        folder.mkdir(parents=True, exist_ok=True)
+        remove_stale_temps(folder)
+    _remove_stale_outputs(out_dirs, {i.item_id for i in items})
+    report = StageReport()
+    todo = []
+    for item in items:
+        if is_up_to_date(item):
+            report.skipped.append(item.item_id)
+        else:
+            todo.append(item)
+    log.info("%s: %d items, %d up to date, %d to do", stage, len(items), len(report.skipped), len(todo))
+    for outcome in run_items(functools.partial(_apply, fn), todo, workers=int(params.get("workers", 1)),
+                             kind=kind, initializer=initializer, initargs=initargs, desc=stage, unit=unit):
+        item: WorkItem = outcome.item
+        if outcome.ok:
+            report.done[item.item_id] = outcome.value
+        else:
+            report.failures.append(Failure(item.item_id, stage, outcome.error_class, outcome.error_message, now()))
+            log.warning("%s: %s: %s", item.item_id, outcome.error_class, outcome.error_message)
+    write_failures(out_dirs[0], stage, report.failures)
+    check_failure_ratio(stage, len(report.failures), len(items), float(params.get("max_failure_ratio", 0.2)))
+    return report
+
+
+def _apply(fn: Callable[[Any], Any], item: WorkItem) -> Any:
+    return fn(item.payload)
+
+
+def _remove_stale_outputs(out_dirs: list[Path], keep: set[str]) -> None:
+    """Outputs of items that are gone upstream must not feed later stages."""
+    for folder in out_dirs:
+        for path in sorted(folder.iterdir()):
+            if path.is_file() and not path.name.startswith(("_", ".")) and path.stem not in keep:
+                log.info("removing %s: its item no longer exists upstream", path)
+                path.unlink()

@@ -1,0 +1,1 @@
+"""ONNX models: the registry (where each file comes from), sessions, and model wrappers."""

@@ -1,0 +1,178 @@
+"""2D pose for a whole segment, streamed: decode, detect the top-k largest people, pose each.
+
+Decoding with the detector's preprocessing, the detector, and the pose model run in three
+threads joined by small bounded queues, so the two CPU cores overlap work on consecutive
+frames while memory stays constant in the video's length. With ``det_every = k > 1`` the
+detector runs on every k-th frame; in between each person's box is carried over from
+their keypoints in the previous frame.
+"""
+
+from __future__ import annotations
+
+import queue
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+import numpy as np
+import pyarrow as pa
+
+from pipeline.media import iter_frames
+from pipeline.models.detector import Detections, Letterbox, largest
+
+SCHEMA_VERSION = 1
+KEYPOINTS = 17
+POSE2D_SCHEMA = pa.schema(
+    [
+        ("frame", pa.int32()),            # frame number on the segment clock (round(time * fps))
+        ("time", pa.float64()),           # seconds from the segment start
+        ("person", pa.int8()),            # rank by box area within the frame, 0 = largest
+        ("box", pa.list_(pa.float32(), 4)),          # x1, y1, x2, y2 in segment pixels
+        ("box_score", pa.float32()),
+        ("keypoints", pa.list_(pa.float32(), KEYPOINTS * 3)),  # COCO-17 (x, y, score) flattened
+        ("detected", pa.bool_()),         # False: box carried over from the previous keypoints
+    ]
+)
+
+
+@dataclass(frozen=True)
+class Pose2dOptions:
+    top_k: int = 5                 # keep the k largest people per frame (the seed recipe uses 5)
+    det_every: int = 1             # run the detector every k-th frame
+    carry_min_score: float = 0.2   # keypoints at least this confident define a carried-over box
+    carry_margin: float = 0.15     # carried box = keypoint extent grown by this share per side
+    queue_size: int = 4
+
+
+@dataclass
+class FramePoses:
+    frame: int
+    time: float
+    boxes: np.ndarray      # Nx4
+    scores: np.ndarray     # N
+    keypoints: np.ndarray  # Nx17x3
+    detected: bool
+
+
+_DONE = object()
+
+
+class _Failed:
+    def __init__(self, exc: BaseException) -> None:
+        self.exc = exc
+
+
+def _pump(source: Iterator[Any], out: queue.Queue, stop: threading.Event) -> None:
+    try:
+        for item in source:
+            while not stop.is_set():
+                try:
+                    out.put(item, timeout=0.1)
+                    break
+                except queue.Full:
+                    continue
+            if stop.is_set():
+                return
+        out.put(_DONE)
+    except BaseException as exc:  # re-raised in the consumer thread
+        out.put(_Failed(exc))
+
+
+def _drain(q: queue.Queue) -> Iterator[Any]:
+    while True:
+        item = q.get()
+        if item is _DONE:
+            return
+        if isinstance(item, _Failed):
+            raise item.exc
+        yield item
+
+
+def _threaded(source: Iterator[Any], size: int, stop: threading.Event) -> Iterator[Any]:
+    q: queue.Queue = queue.Queue(maxsize=size)
+    thread = threading.Thread(target=_pump, args=(source, q, stop), daemon=True)
+    thread.start()
+    return _drain(q)
+
+
+def carried_boxes(keypoints: np.ndarray, width: int, height: int, min_score: float, margin: float) -> np.ndarray:
+    """Boxes around each person's confident keypoints, grown by ``margin``; NaN rows when too few."""
+    boxes = np.full((len(keypoints), 4), np.nan, np.float32)
+    for i, kp in enumerate(keypoints):
+        good = kp[kp[:, 2] >= min_score]
+        if len(good) < 3:
+            continue
+        x1, y1 = good[:, :2].min(0)
+        x2, y2 = good[:, :2].max(0)
+        mx, my = (x2 - x1) * margin, (y2 - y1) * margin
+        boxes[i] = [max(0, x1 - mx), max(0, y1 - my), min(width, x2 + mx), min(height, y2 + my)]
+    return boxes
+
+
+def estimate_segment(path: Path, fps: float, detector, pose, opts: Pose2dOptions) -> Iterator[FramePoses]:
+    """Yield the poses of every decoded frame of the segment at ``path``, in order."""
+    stop = threading.Event()
+    every = max(1, int(opts.det_every))
+
+    def decoded() -> Iterator[tuple]:
+        for frame in iter_frames(path):
+            number = int(round(frame.time * fps))
+            box: Letterbox | None = detector.preprocess(frame.image) if number % every == 0 else None
+            yield number, frame.time, frame.image, box
+
+    def detected(frames: Iterator[tuple]) -> Iterator[tuple]:
+        for number, time, image, box in frames:
+            dets = largest(detector.infer(box), opts.top_k) if box is not None else None
+            yield number, time, image, dets
+
+    try:
+        stream = _threaded(detected(_threaded(decoded(), opts.queue_size, stop)), opts.queue_size, stop)
+        previous: FramePoses | None = None
+        for number, time, image, dets in stream:
+            was_detected = dets is not None
+            if dets is None:
+                dets = _carry(previous, image, opts)
+            keypoints = pose.estimate(image, dets.boxes)
+            result = FramePoses(number, time, dets.boxes, dets.scores, keypoints, was_detected)
+            previous = result
+            yield result
+    finally:
+        stop.set()
+
+
+def _carry(previous: FramePoses | None, image: np.ndarray, opts: Pose2dOptions) -> Detections:
+    if previous is None or not len(previous.scores):
+        return Detections(np.zeros((0, 4), np.float32), np.zeros(0, np.float32))
+    h, w = image.shape[:2]
+    boxes = carried_boxes(previous.keypoints, w, h, opts.carry_min_score, opts.carry_margin)
+    keep = ~np.isnan(boxes[:, 0])
+    return Detections(boxes[keep], previous.scores[keep])
+
+
+def poses_to_table(frames: Iterator[FramePoses], progress: Callable[[], None] | None = None) -> tuple[pa.Table, int]:
+    """Collect per-person rows into the pose2d table; returns it and the number of frames seen."""
+    cols: dict[str, list] = {name: [] for name in POSE2D_SCHEMA.names}
+    seen = 0
+    for fp in frames:
+        seen += 1
+        for i in range(len(fp.scores)):
+            cols["frame"].append(fp.frame)
+            cols["time"].append(fp.time)
+            cols["person"].append(i)
+            cols["box"].append(fp.boxes[i].astype(np.float32))
+            cols["box_score"].append(float(fp.scores[i]))
+            cols["keypoints"].append(fp.keypoints[i].reshape(-1).astype(np.float32))
+            cols["detected"].append(fp.detected)
+        if progress:
+            progress()
+    arrays = []
+    for field in POSE2D_SCHEMA:
+        values = cols[field.name]
+        if pa.types.is_fixed_size_list(field.type):
+            size = field.type.list_size
+            flat = np.concatenate(values).astype(np.float32) if values else np.zeros(0, np.float32)
+            arrays.append(pa.FixedSizeListArray.from_arrays(pa.array(flat, pa.float32()), size))
+        else:
+            arrays.append(pa.array(values, field.type))
+    return pa.Table.from_arrays(arrays, schema=POSE2D_SCHEMA), seen

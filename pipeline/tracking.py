@@ -1,0 +1,145 @@
+"""Pose-aware online multi-person tracking, in the spirit of LightTrack / OC-SORT.
+
+Each frame, every live track predicts its box with a constant-velocity model. The cost
+of pairing a track with a detection is ``1 - (w * IoU + (1 - w) * OKS)`` between the
+prediction and the detection (box overlap and keypoint similarity); the Hungarian method
+(scipy) picks the cheapest pairs, and pairs costing more than ``max_cost`` are refused.
+A detection left over starts a tentative track; a track becomes real after ``min_hits``
+matches (and then keeps its earlier detections too, since a segment is processed whole);
+a track not matched for ``max_age`` frames ends, so people who are hidden briefly get
+their id back. Detections of tracks that never became real get track id -1.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+# COCO keypoint sigmas (pycocotools), used by OKS.
+COCO_SIGMAS = np.array([0.26, 0.25, 0.25, 0.35, 0.35, 0.79, 0.79, 0.72, 0.72, 0.62, 0.62,
+                        1.07, 1.07, 0.87, 0.87, 0.89, 0.89]) / 10.0
+UNTRACKED = -1
+
+
+@dataclass(frozen=True)
+class TrackerOptions:
+    iou_weight: float = 0.5      # w in the similarity w * IoU + (1 - w) * OKS
+    max_cost: float = 0.75       # pairs with 1 - similarity above this are never matched
+    min_hits: int = 3            # matches before a track gets an id
+    max_age: int = 24            # frames a lost track waits to be re-associated
+    kp_min_score: float = 0.2    # keypoints below this confidence are ignored by OKS
+    velocity_smoothing: float = 0.6  # weight of the newest velocity estimate
+
+
+def iou_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Pairwise IoU of boxes (Na x 4) and (Nb x 4)."""
+    if not len(a) or not len(b):
+        return np.zeros((len(a), len(b)))
+    x1 = np.maximum(a[:, None, 0], b[None, :, 0])
+    y1 = np.maximum(a[:, None, 1], b[None, :, 1])
+    x2 = np.minimum(a[:, None, 2], b[None, :, 2])
+    y2 = np.minimum(a[:, None, 3], b[None, :, 3])
+    inter = np.clip(x2 - x1, 0, None) * np.clip(y2 - y1, 0, None)
+    area_a = (a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1])
+    area_b = (b[:, 2] - b[:, 0]) * (b[:, 3] - b[:, 1])
+    union = area_a[:, None] + area_b[None, :] - inter
+    return np.where(union > 0, inter / np.maximum(union, 1e-9), 0.0)
+
+
+def oks_matrix(kp_a: np.ndarray, kp_b: np.ndarray, areas: np.ndarray, min_score: float) -> np.ndarray:
+    """Object keypoint similarity between poses (Na x 17 x 3) and (Nb x 17 x 3).
+
+    ``areas`` (Nb) are the detection boxes' areas, the scale of OKS. Only keypoints
+    confident in both poses count; a pair with none shares similarity 0.
+    """
+    if not len(kp_a) or not len(kp_b):
+        return np.zeros((len(kp_a), len(kp_b)))
+    d2 = ((kp_a[:, None, :, :2] - kp_b[None, :, :, :2]) ** 2).sum(-1)
+    k2 = (2 * COCO_SIGMAS) ** 2
+    e = d2 / (2 * np.maximum(areas, 1.0)[None, :, None] * k2[None, None, :])
+    both = (kp_a[:, None, :, 2] >= min_score) & (kp_b[None, :, :, 2] >= min_score)
+    counts = both.sum(-1)
+    sims = (np.exp(-e) * both).sum(-1)
+    return np.where(counts > 0, sims / np.maximum(counts, 1), 0.0)
+
+
+@dataclass
+class _Track:
+    box: np.ndarray
+    keypoints: np.ndarray
+    last_frame: int
+    velocity: np.ndarray = field(default_factory=lambda: np.zeros(4))
+    hits: int = 1
+    detections: list[int] = field(default_factory=list)
+    track_id: int = UNTRACKED
+
+    def predict(self, frame: int) -> tuple[np.ndarray, np.ndarray]:
+        dt = frame - self.last_frame
+        box = self.box + self.velocity * dt
+        shift = (self.velocity[:2] + self.velocity[2:]) / 2 * dt
+        keypoints = self.keypoints.copy()
+        keypoints[:, :2] += shift
+        return box, keypoints
+
+    def update(self, box: np.ndarray, keypoints: np.ndarray, frame: int, index: int, alpha: float) -> None:
+        dt = max(1, frame - self.last_frame)
+        self.velocity = alpha * (box - self.box) / dt + (1 - alpha) * self.velocity
+        self.box, self.keypoints, self.last_frame = box, keypoints, frame
+        self.hits += 1
+        self.detections.append(index)
+
+
+def assign_tracks(frames: np.ndarray, boxes: np.ndarray, keypoints: np.ndarray,
+                  opts: TrackerOptions = TrackerOptions()) -> np.ndarray:
+    """Track ids (int32, -1 = not part of any real track) for detections sorted by frame.
+
+    ``frames`` (N), ``boxes`` (N x 4) and ``keypoints`` (N x 17 x 3) describe every
+    detection of a segment. Ids are 1, 2, ... in the order the tracks become real.
+    """
+    ids = np.full(len(frames), UNTRACKED, np.int32)
+    if not len(frames):
+        return ids
+    if np.any(np.diff(frames) < 0):
+        raise ValueError("detections must be sorted by frame")
+    live: list[_Track] = []
+    next_id = 1
+    starts = np.flatnonzero(np.r_[True, np.diff(frames) != 0])
+    ends = np.r_[starts[1:], len(frames)]
+    for start, end in zip(starts, ends):
+        frame = int(frames[start])
+        live = [t for t in live if frame - t.last_frame <= opts.max_age]
+        det_idx = np.arange(start, end)
+        det_boxes, det_kps = boxes[start:end].astype(np.float64), keypoints[start:end].astype(np.float64)
+        matched_dets: set[int] = set()
+        if live:
+            predicted = [t.predict(frame) for t in live]
+            pred_boxes = np.stack([p[0] for p in predicted])
+            pred_kps = np.stack([p[1] for p in predicted])
+            areas = (det_boxes[:, 2] - det_boxes[:, 0]) * (det_boxes[:, 3] - det_boxes[:, 1])
+            similarity = (opts.iou_weight * iou_matrix(pred_boxes, det_boxes)
+                          + (1 - opts.iou_weight) * oks_matrix(pred_kps, det_kps, areas, opts.kp_min_score))
+            cost = 1.0 - similarity
+            rows, cols = linear_sum_assignment(np.where(cost <= opts.max_cost, cost, 1e6))
+            for r, c in zip(rows, cols):
+                if cost[r, c] > opts.max_cost:
+                    continue
+                track = live[r]
+                track.update(det_boxes[c], det_kps[c], frame, int(det_idx[c]), opts.velocity_smoothing)
+                matched_dets.add(c)
+                if track.track_id == UNTRACKED and track.hits >= opts.min_hits:
+                    track.track_id = next_id
+                    next_id += 1
+                    ids[track.detections] = track.track_id  # its tentative past too
+                elif track.track_id != UNTRACKED:
+                    ids[det_idx[c]] = track.track_id
+        for c in range(len(det_idx)):
+            if c not in matched_dets:
+                track = _Track(det_boxes[c], det_kps[c], frame, detections=[int(det_idx[c])])
+                if opts.min_hits <= 1:
+                    track.track_id = next_id
+                    next_id += 1
+                    ids[track.detections] = track.track_id
+                live.append(track)
+    return ids
