@@ -76,3 +76,21 @@ def set_params(root: Path, section: str, **values) -> None:
     params = yaml.safe_load(path.read_text())
     params.setdefault(section, {}).update(values)
     path.write_text(yaml.safe_dump(params, sort_keys=False))
+
+
+@pytest.fixture(scope="session")
+def models_dir() -> Path:
+    return _asset_dir("DANCE3D_MODELS", "rtmdet_nano_person_end2end.onnx")
+
+
+def write_sources(root: Path, rows: list[tuple[str, Path]]) -> None:
+    """sources.csv of (video_id, local path) rows."""
+    body = "".join(f"{vid},{path}\n" for vid, path in rows)
+    (root / "manifests/sources.csv").write_text("video_id,url\n" + body)
+
+
+def run_stages(root: Path, *names: str) -> None:
+    import importlib
+
+    for name in names:
+        importlib.import_module(f"stages.{name}").run(root)

@@ -33,7 +33,8 @@ def _dvc(root: Path, *args: str) -> subprocess.CompletedProcess:
 
 
 @pytest.mark.slow
-def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path) -> None:
+def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Path, monkeypatch) -> None:
+    monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
     root = _copy_project(tmp_path / "dance3d")
     (root / "demo").mkdir(exist_ok=True)
     (root / "demo/media").symlink_to(media_dir / "videos")
@@ -47,6 +48,12 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path) -> None:
     index = pq.read_table(root / "data/segments/index.parquet").to_pylist()
     assert [r["segment_id"] for r in index] == ["musepose_dance_000", "solo_dance_000", "solo_dance_001", "taiji_000"]
     assert all((root / "data/segments" / r["path"]).stat().st_size > 0 for r in index)
+
+    for seg in index:
+        tracks = pq.read_table(root / "data/tracks" / f"{seg['segment_id']}.parquet")
+        ids = tracks.column("track_id").to_numpy()
+        assert (ids == 1).sum() >= 0.9 * seg["frames"], seg["segment_id"]  # one dancer, one long track
+        assert (root / "data/qc" / f"{seg['segment_id']}.mp4").stat().st_size > 0
 
     second = _dvc(root, "repro")
     assert second.returncode == 0, second.stderr[-3000:]

@@ -1,0 +1,154 @@
+"""ONNX models: golden outputs, the registry, and the RTMPose SimCC decoder."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import onnx
+import pytest
+from onnx import TensorProto, helper, numpy_helper
+
+from pipeline.errors import ModelMissingError
+from pipeline.models import registry
+from pipeline.models.detector import Detections, RTMDetDetector, largest
+from pipeline.models.pose import COCO17, MoveNetPose, RTMPose, crop_transform, decode_simcc
+from pipeline.models.session import create_session
+
+
+@pytest.fixture(scope="module")
+def detector(models_dir: Path) -> RTMDetDetector:
+    return RTMDetDetector(create_session(models_dir / "rtmdet_nano_person_end2end.onnx"), score_threshold=0.05)
+
+
+@pytest.fixture(scope="module")
+def movenet(models_dir: Path) -> MoveNetPose:
+    return MoveNetPose(create_session(models_dir / "movenet_singlepose_lightning_4_dequant.onnx"))
+
+
+def golden(models_dir: Path) -> list[dict]:
+    return json.loads((models_dir / "reference_outputs.json").read_text())["images"]
+
+
+def test_detector_and_pose_reproduce_the_golden_outputs(models_dir: Path, detector, movenet) -> None:
+    shared = models_dir.parent
+    checked = 0
+    for ref in golden(models_dir):
+        image = cv2.imread(str(shared / ref["file"]))
+        assert image is not None, ref["file"]
+        dets = detector.detect(image)
+        expected = np.array(ref["detector"]["top_dets_xyxy_score"])
+        assert np.abs(dets.boxes[: len(expected)] - expected[:, :4]).max() <= 2.0
+        assert np.abs(dets.scores[: len(expected)] - expected[:, 4]).max() <= 0.01
+        assert int((dets.scores >= 0.5).sum()) == ref["detector"]["num_with_score_ge_0.5"]
+        if ref.get("pose_on_top_person"):
+            kps = movenet.estimate(image, dets.boxes[:1])[0]
+            want = np.array([ref["pose_on_top_person"]["keypoints"][name] for name in COCO17])
+            assert np.abs(kps[:, :2] - want[:, :2]).max() <= 3.0
+            assert np.abs(kps[:, 2] - want[:, 2]).max() <= 0.05
+            checked += 1
+    assert checked == 2
+
+
+def test_largest_keeps_the_k_biggest_boxes() -> None:
+    boxes = np.array([[0, 0, 10, 10], [0, 0, 50, 50], [0, 0, 30, 30], [0, 0, 5, 5]], np.float32)
+    top = largest(Detections(boxes, np.array([0.9, 0.6, 0.7, 0.99], np.float32)), 2)
+    assert top.boxes[:, 2].tolist() == [50, 30]
+    assert top.scores.tolist() == pytest.approx([0.6, 0.7])
+
+
+def _simcc_model(path: Path, x_peaks: list[int], y_peaks: list[int], w: int = 192, h: int = 256) -> Path:
+    """An ONNX graph with RTMPose's interface whose SimCC outputs peak where the test says."""
+    sx = np.zeros((1, 17, w * 2), np.float32)
+    sy = np.zeros((1, 17, h * 2), np.float32)
+    for k in range(17):
+        sx[0, k, x_peaks[k]] = 0.9
+        sy[0, k, y_peaks[k]] = 0.7 if k % 2 else 0.95
+    nodes = [
+        helper.make_node("ReduceMean", ["input"], ["m"], axes=[1, 2, 3], keepdims=1),  # N x 1 x 1 x 1
+        helper.make_node("Reshape", ["m", "shape"], ["m3"]),                           # N x 1 x 1
+        helper.make_node("Mul", ["m3", "zero"], ["z"]),
+        helper.make_node("Add", ["z", "cx"], ["simcc_x"]),
+        helper.make_node("Add", ["z", "cy"], ["simcc_y"]),
+    ]
+    inits = [numpy_helper.from_array(sx, "cx"), numpy_helper.from_array(sy, "cy"),
+             numpy_helper.from_array(np.zeros(1, np.float32), "zero"),
+             numpy_helper.from_array(np.array([-1, 1, 1], np.int64), "shape")]
+    graph = helper.make_graph(
+        nodes, "tiny_rtmpose",
+        [helper.make_tensor_value_info("input", TensorProto.FLOAT, ["N", 3, h, w])],
+        [helper.make_tensor_value_info("simcc_x", TensorProto.FLOAT, ["N", 17, w * 2]),
+         helper.make_tensor_value_info("simcc_y", TensorProto.FLOAT, ["N", 17, h * 2])],
+        inits,
+    )
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 13)], ir_version=8)
+    onnx.checker.check_model(model)
+    onnx.save(model, path)
+    return path
+
+
+def test_rtmpose_decoder_maps_simcc_peaks_back_to_the_image(tmp_path: Path) -> None:
+    x_peaks = [20 * k + 10 for k in range(17)]
+    y_peaks = [25 * k + 30 for k in range(17)]
+    pose = RTMPose(create_session(_simcc_model(tmp_path / "tiny.onnx", x_peaks, y_peaks)))
+    image = np.zeros((480, 640, 3), np.uint8)
+    boxes = np.array([[100, 50, 220, 410], [400, 100, 460, 180]], np.float32)
+    out = pose.estimate(image, boxes)  # both crops in one batched call
+    assert out.shape == (2, 17, 3)
+    for i, box in enumerate(boxes):
+        m = crop_transform(box, 192, 256)
+        crop_xy = np.column_stack([np.array(x_peaks) / 2, np.array(y_peaks) / 2])
+        expected = (crop_xy - m[:, 2]) / m[0, 0]
+        assert np.allclose(out[i, :, :2], expected, atol=1e-4)
+        # a crop point at the crop centre is the box centre in the image
+        centre = (np.array([96, 128]) - m[:, 2]) / m[0, 0]
+        assert np.allclose(centre, [(box[0] + box[2]) / 2, (box[1] + box[3]) / 2])
+    assert np.allclose(out[:, :, 2], np.where(np.arange(17) % 2, 0.7, 0.9))
+
+
+def test_decode_simcc_takes_the_smaller_maximum() -> None:
+    sx = np.zeros((1, 1, 10)); sx[0, 0, 4] = 0.8
+    sy = np.zeros((1, 1, 12)); sy[0, 0, 9] = 0.3
+    assert decode_simcc(sx, sy).tolist() == [[[2.0, 4.5, pytest.approx(0.3)]]]
+
+
+def test_missing_model_without_download_names_the_file_and_where_to_put_it(tmp_path, monkeypatch) -> None:
+    monkeypatch.setenv("DANCE3D_MODELS", str(tmp_path / "empty"))
+    with pytest.raises(ModelMissingError) as err:
+        registry.resolve_model("movenet-lightning", tmp_path)
+    message = str(err.value)
+    assert "\n" not in message
+    assert "movenet_singlepose_lightning_4_dequant.onnx not found; put it in" in message
+    assert str(tmp_path / "models") in message
+
+
+def test_failed_download_is_one_clear_line(tmp_path, monkeypatch) -> None:
+    monkeypatch.setenv("DANCE3D_MODELS", str(tmp_path / "empty"))
+    spec = dataclasses.replace(registry.REGISTRY["rtmdet-nano-person"], url="http://127.0.0.1:9/rtmdet.zip")
+    monkeypatch.setitem(registry.REGISTRY, spec.name, spec)
+    with pytest.raises(ModelMissingError, match=r"rtmdet_nano_person_end2end\.onnx not found in .* download from "
+                                                r"http://127\.0\.0\.1:9/rtmdet\.zip failed .* by hand"):
+        registry.resolve_model("rtmdet-nano-person", tmp_path)
+    assert not (tmp_path / "models" / spec.file).exists()
+
+
+def test_download_with_a_wrong_checksum_is_refused(tmp_path, monkeypatch) -> None:
+    import zipfile
+
+    archive = tmp_path / "m.zip"
+    with zipfile.ZipFile(archive, "w") as z:
+        z.writestr("pkg/end2end.onnx", b"not the real model")
+    monkeypatch.setenv("DANCE3D_MODELS", str(tmp_path / "empty"))
+    spec = dataclasses.replace(registry.REGISTRY["rtmdet-nano-person"], url=archive.as_uri())
+    monkeypatch.setitem(registry.REGISTRY, spec.name, spec)
+    with pytest.raises(ModelMissingError, match="checksum mismatch"):
+        registry.resolve_model("rtmdet-nano-person", tmp_path)
+    assert not (tmp_path / "models" / spec.file).exists()
+
+
+def test_models_are_found_through_the_environment(models_dir: Path, tmp_path: Path, monkeypatch) -> None:
+    monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
+    assert registry.resolve_model("rtmdet-nano-person", tmp_path) == models_dir / "rtmdet_nano_person_end2end.onnx"

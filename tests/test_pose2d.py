@@ -1,0 +1,142 @@
+"""pose2d and track stages on real clips: coverage, geometry, two dancers, bad input."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from pipeline.errors import ModelMissingError
+from pipeline.media import probe
+from pipeline.models.detector import RTMDetDetector
+from pipeline.models.pose import COCO17, MoveNetPose
+from pipeline.models.session import create_session
+from pipeline.pose2d import Pose2dOptions, estimate_segment, poses_to_table
+from pipeline.storage import read_meta
+from tests.conftest import ffmpeg, make_test_video, run_stages, set_params, write_sources
+
+
+@pytest.fixture(scope="module")
+def models(models_dir: Path):
+    det = RTMDetDetector(create_session(models_dir / "rtmdet_nano_person_end2end.onnx"))
+    pose = MoveNetPose(create_session(models_dir / "movenet_singlepose_lightning_4_dequant.onnx"))
+    return det, pose
+
+
+def _arrays(table):
+    boxes = np.asarray(table.column("box").combine_chunks().flatten()).reshape(-1, 4)
+    kps = np.asarray(table.column("keypoints").combine_chunks().flatten()).reshape(-1, 17, 3)
+    return table.column("frame").to_numpy(), boxes, kps
+
+
+def test_dancer_found_in_nearly_every_frame_with_keypoints_in_the_box(dance_clip: Path, models) -> None:
+    table, frames = poses_to_table(estimate_segment(dance_clip, 24.0, *models, Pose2dOptions()))
+    frame, boxes, kps = _arrays(table)
+    assert frames == 288
+    assert len(np.unique(frame)) >= 0.95 * frames
+    confident = kps[:, :, 2] >= 0.3
+    inside = ((kps[:, :, 0] >= boxes[:, None, 0] - 5) & (kps[:, :, 0] <= boxes[:, None, 2] + 5)
+              & (kps[:, :, 1] >= boxes[:, None, 1] - 5) & (kps[:, :, 1] <= boxes[:, None, 3] + 5))
+    assert inside[confident].mean() >= 0.97
+    # She faces the camera: her left shoulder and hip are on the image's right.
+    top = table.column("person").to_numpy() == 0
+    assert (kps[top, 5, 0] > kps[top, 6, 0]).mean() >= 0.9
+    assert (kps[top, 11, 0] > kps[top, 12, 0]).mean() >= 0.9
+
+
+def test_golden_frame_from_the_stream_has_left_and_right_the_right_way(media_dir: Path, models_dir: Path,
+                                                                          models) -> None:
+    ref = next(r for r in json.loads((models_dir / "reference_outputs.json").read_text())["images"]
+               if r["file"].endswith("dance_frame100.jpg"))
+    want = np.array([ref["pose_on_top_person"]["keypoints"][n][:2] for n in COCO17])
+    clip = media_dir / "videos/dance_solo_384x496_30fps.mp4"
+    result = next(fp for fp in estimate_segment(clip, 30.0, *models, Pose2dOptions()) if fp.frame == 100)
+    got = result.keypoints[0, :, :2]
+    assert np.median(np.linalg.norm(got - want, axis=1)) <= 5.0  # JPEG vs video decode differ a little
+    for left, right in ((5, 6), (7, 8), (9, 10), (11, 12), (13, 14), (15, 16)):
+        assert np.linalg.norm(got[left] - want[left]) < np.linalg.norm(got[left] - want[right])
+
+
+def test_det_every_carries_boxes_between_detections(dance_clip: Path, models) -> None:
+    table, _ = poses_to_table(estimate_segment(dance_clip, 24.0, *models, Pose2dOptions(det_every=4)))
+    detected = table.column("detected").to_numpy()
+    frame = table.column("frame").to_numpy()
+    assert detected[frame % 4 == 0].all() and not detected[frame % 4 != 0].any()
+    assert len(np.unique(frame)) >= 0.95 * 288
+
+
+@pytest.fixture
+def two_dancers(tmp_path: Path, media_dir: Path) -> Path:
+    """Two real dancers side by side (built with ffmpeg from the shared clips), 6 s."""
+    out = tmp_path / "duo.mp4"
+    ffmpeg("-i", str(media_dir / "videos/dance_single_music_musepose.mp4"),
+           "-i", str(media_dir / "videos/dance_solo_384x496_30fps.mp4"),
+           "-filter_complex", "[0:v]fps=24,scale=-2:496[a];[1:v]fps=24[b];[a][b]hstack=inputs=2[v]",
+           "-map", "[v]", "-map", "0:a", "-t", "6", "-c:v", "libx264", "-preset", "ultrafast",
+           "-c:a", "aac", str(out))
+    return out
+
+
+def test_two_dancers_side_by_side_give_exactly_two_long_tracks_that_never_swap(
+        project: Path, two_dancers: Path, models_dir: Path, monkeypatch) -> None:
+    monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
+    write_sources(project, [("duo", two_dancers)])
+    set_params(project, "trim", unannotated="whole")
+    set_params(project, "pose2d", workers=2)
+    run_stages(project, "download", "trim", "pose2d", "track")
+    tracks = pq.read_table(project / "data/tracks/duo_000.parquet")
+    frame, boxes, _ = _arrays(tracks)
+    ids = tracks.column("track_id").to_numpy()
+    n_frames = read_meta(project / "data/tracks/duo_000.parquet")["frames"]
+    long_tracks = [t for t in np.unique(ids[ids >= 0]) if (ids == t).sum() >= 0.8 * n_frames]
+    assert len(long_tracks) == 2
+    middle = round(1080 * 496 / 1920 / 2) * 2  # the seam: the left clip is scaled to 280 x 496
+    centres = (boxes[:, 0] + boxes[:, 2]) / 2
+    sides = {t: set(np.where(centres[ids == t] < middle, "left", "right")) for t in long_tracks}
+    assert sorted(map(tuple, sides.values())) == [("left",), ("right",)]  # each id stays on its side
+    qc = probe(project / "data/qc/duo_000.mp4")
+    assert qc.has_audio and qc.frames == n_frames
+
+
+def test_segment_without_people_is_an_empty_result_not_a_failure(project: Path, tmp_path: Path,
+                                                                   models_dir: Path, monkeypatch) -> None:
+    monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
+    write_sources(project, [("pattern", make_test_video(tmp_path / "pattern.mp4", seconds=2))])
+    set_params(project, "trim", unannotated="whole")
+    run_stages(project, "download", "trim", "pose2d", "track")
+    assert pq.read_table(project / "data/pose2d/pattern_000.parquet").num_rows == 0
+    assert pq.read_table(project / "data/pose2d/_failures.parquet").num_rows == 0
+    assert probe(project / "data/qc/pattern_000.mp4").frames == 50
+
+
+def test_corrupt_packets_in_the_middle_are_skipped(project: Path, media_dir: Path, models_dir: Path,
+                                                    monkeypatch) -> None:
+    monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
+    write_sources(project, [("solo", media_dir / "videos/dance_solo_384x496_30fps.mp4")])
+    (project / "annotations/segments.csv").write_text("video_id,start,end\nsolo,0,4\n")
+    run_stages(project, "download", "trim")
+    segment = project / "data/segments/solo_000.mp4"
+    data = bytearray(segment.read_bytes())
+    middle = len(data) // 2
+    data[middle:middle + 3000] = bytes(np.random.default_rng(0).integers(0, 256, 3000, dtype=np.uint8))
+    segment.write_bytes(bytes(data))
+    run_stages(project, "pose2d")
+    table = pq.read_table(project / "data/pose2d/solo_000.parquet")
+    assert len(set(table.column("frame").to_pylist())) >= 0.8 * 120
+
+
+def test_missing_model_stops_the_stage_with_one_line(project: Path, tmp_path: Path, models_dir: Path,
+                                                      monkeypatch) -> None:
+    only_detector = tmp_path / "only-detector"
+    only_detector.mkdir()
+    (only_detector / "rtmdet_nano_person_end2end.onnx").symlink_to(models_dir / "rtmdet_nano_person_end2end.onnx")
+    monkeypatch.setenv("DANCE3D_MODELS", str(only_detector))
+    with pytest.raises(ModelMissingError) as err:
+        run_stages(project, "pose2d")
+    message = str(err.value)
+    assert "\n" not in message
+    assert message.startswith("model movenet-lightning: movenet_singlepose_lightning_4_dequant.onnx not found; "
+                              f"put it in {only_detector} or {project / 'models'}")
