@@ -54,14 +54,15 @@ def draw_frame(image: np.ndarray, frame: int, time: float, people: list[tuple], 
         label = str(track_id) if track_id >= 0 else "?"
         scale = 1.4 * unit
         (tw, th), _ = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, scale, thick + 1)
-        ty = max(th + 6, y1 - 6)
+        ty = max(th + 6, y1 - 6)  # above the box, or just inside it at the top edge
         cv2.rectangle(image, (x1, ty - th - 6), (x1 + tw + 8, ty + 4), colour, -1)
         cv2.putText(image, label, (x1 + 4, ty), cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), thick + 1, cv2.LINE_AA)
+    # Bottom-left, so it never hides the id label of someone near the top edge.
     banner = f"frame {frame}   {format_time(time)}"
     scale = 0.8 * unit
     (tw, th), _ = cv2.getTextSize(banner, cv2.FONT_HERSHEY_SIMPLEX, scale, thick)
-    cv2.rectangle(image, (0, 0), (tw + 16, th + 16), (0, 0, 0), -1)
-    cv2.putText(image, banner, (8, th + 8), cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), thick, cv2.LINE_AA)
+    cv2.rectangle(image, (0, h - th - 16), (tw + 16, h), (0, 0, 0), -1)
+    cv2.putText(image, banner, (8, h - 8), cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), thick, cv2.LINE_AA)
     return image
 
 

@@ -9,22 +9,20 @@ import threading
 from pathlib import Path
 
 import pyarrow as pa
-import pyarrow.parquet as pq
 
+from pipeline.catalog import LEDGER, read_ledger
 from pipeline.download import DownloadOptions, LedgerRow, download_source
 from pipeline.errors import RateLimitedError
 from pipeline.executor import run_items
 from pipeline.failures import Failure, check_failure_ratio, now, write_failures
 from pipeline.params import load_params, stage_params
+from pipeline.paths import RAW, SOURCES
 from pipeline.sources import Source, read_sources
 from pipeline.stage import run_stage, setup_logging
 from pipeline.storage import remove_stale_temps, write_parquet
 
 log = logging.getLogger("dance3d.download")
 
-SOURCES = Path("manifests/sources.csv")
-RAW = Path("data/raw")
-LEDGER = "ledger.parquet"
 LEDGER_SCHEMA = pa.schema(
     [
         ("url", pa.string()), ("video_id", pa.string()), ("status", pa.string()),
@@ -36,14 +34,6 @@ LEDGER_SCHEMA = pa.schema(
         ("tags", pa.list_(pa.string())), ("attempts", pa.int32()),
     ]
 )
-
-
-def read_ledger(raw_dir: Path) -> dict[str, dict]:
-    """The previous ledger by url ({} when there is none)."""
-    path = raw_dir / LEDGER
-    if not path.exists():
-        return {}
-    return {row["url"]: row for row in pq.read_table(path).to_pylist()}
 
 
 def _is_done(row: dict | None, raw_dir: Path) -> bool:

@@ -6,20 +6,25 @@ import logging
 import sys
 from pathlib import Path
 
+from pipeline.catalog import read_index
 from pipeline.itemstage import WorkItem, run_item_stage
 from pipeline.models.detector import RTMDetDetector
 from pipeline.models.pose import MoveNetPose, RTMPose
 from pipeline.models.registry import get_spec, resolve_model
 from pipeline.models.session import create_session
 from pipeline.params import load_params, stage_params
-from pipeline.pose2d import SCHEMA_VERSION, Pose2dOptions, estimate_segment, poses_to_table
+from pipeline.paths import POSE2D, SEGMENTS
+from pipeline.pose2d import (
+    SCHEMA_VERSION,
+    Pose2dOptions,
+    estimate_segment,
+    poses_to_table,
+)
 from pipeline.stage import run_stage, setup_logging
 from pipeline.storage import fingerprint, sha256_file, write_parquet
-from stages.trim import SEGMENTS, read_index
 
 log = logging.getLogger("dance3d.pose2d")
 
-POSE2D = Path("data/pose2d")
 _MODELS: dict[str, object] = {}  # per worker process: sessions are built once, not per segment
 
 

@@ -10,17 +10,15 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from pipeline.catalog import read_index
 from pipeline.itemstage import WorkItem, run_item_stage
 from pipeline.params import load_params, stage_params
+from pipeline.paths import POSE2D, QC, SEGMENTS, TRACKS
 from pipeline.qc import render_qc
 from pipeline.stage import run_stage, setup_logging
 from pipeline.storage import fingerprint, read_meta, write_parquet
 from pipeline.tracking import TrackerOptions, assign_tracks
-from stages.pose2d import POSE2D
-from stages.trim import SEGMENTS, read_index
 
-TRACKS = Path("data/tracks")
-QC = Path("data/qc")
 SCHEMA_VERSION = 1
 
 

@@ -8,24 +8,21 @@ from dataclasses import asdict
 from pathlib import Path
 
 import pyarrow as pa
-import pyarrow.parquet as pq
 
+from pipeline.catalog import INDEX, read_index, read_ledger
 from pipeline.errors import InputErrors
 from pipeline.executor import run_items
 from pipeline.failures import Failure, check_failure_ratio, now, write_failures
 from pipeline.media import probe
 from pipeline.params import load_params, stage_params
+from pipeline.paths import ANNOTATIONS, RAW, SEGMENTS
 from pipeline.segments import SegmentSpec, plan_segments
 from pipeline.stage import run_stage, setup_logging
 from pipeline.storage import fingerprint, remove_stale_temps, write_parquet
 from pipeline.trim import TrimOptions, cut_segment
-from stages.download import RAW, read_ledger
 
 log = logging.getLogger("dance3d.trim")
 
-ANNOTATIONS = Path("annotations/segments.csv")
-SEGMENTS = Path("data/segments")
-INDEX = "index.parquet"
 SCHEMA_VERSION = 1
 INDEX_SCHEMA = pa.schema(
     [
@@ -42,11 +39,6 @@ def _cut(job: tuple) -> dict:
     video = probe(src)
     row = cut_segment(src, video, spec, out_dir / f"{spec.segment_id}.mp4", out_dir / f"{spec.segment_id}.wav", opts)
     return {**row, "fingerprint": fp}
-
-
-def read_index(seg_dir: Path) -> dict[str, dict]:
-    path = seg_dir / INDEX
-    return {r["segment_id"]: r for r in pq.read_table(path).to_pylist()} if path.exists() else {}
 
 
 def run(root: Path) -> None:

@@ -15,7 +15,13 @@ from onnx import TensorProto, helper, numpy_helper
 from pipeline.errors import ModelMissingError
 from pipeline.models import registry
 from pipeline.models.detector import Detections, RTMDetDetector, largest
-from pipeline.models.pose import COCO17, MoveNetPose, RTMPose, crop_transform, decode_simcc
+from pipeline.models.pose import (
+    COCO17,
+    MoveNetPose,
+    RTMPose,
+    crop_transform,
+    decode_simcc,
+)
 from pipeline.models.session import create_session
 
 

@@ -16,7 +16,13 @@ from pipeline.models.pose import COCO17, MoveNetPose
 from pipeline.models.session import create_session
 from pipeline.pose2d import Pose2dOptions, estimate_segment, poses_to_table
 from pipeline.storage import read_meta
-from tests.conftest import ffmpeg, make_test_video, run_stages, set_params, write_sources
+from tests.conftest import (
+    ffmpeg,
+    make_test_video,
+    run_stages,
+    set_params,
+    write_sources,
+)
 
 
 @pytest.fixture(scope="module")

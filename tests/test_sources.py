@@ -58,7 +58,7 @@ def test_unsafe_id_is_refused(tmp_path: Path) -> None:
 def test_bad_urls_are_kept_as_row_errors(tmp_path: Path, url: str, reason: str) -> None:
     path = write(tmp_path, f"a,{url},,,,\nb,ok.mp4,,,,\n")
     bad, good = read_sources(path, base_dir=tmp_path)
-    assert f"sources.csv:2: " in bad.url_error and reason in bad.url_error
+    assert "sources.csv:2: " in bad.url_error and reason in bad.url_error
     assert good.url_error == ""
 
 

@@ -5,7 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.tracking import UNTRACKED, TrackerOptions, assign_tracks, iou_matrix, oks_matrix
+from pipeline.tracking import (
+    UNTRACKED,
+    TrackerOptions,
+    assign_tracks,
+    iou_matrix,
+    oks_matrix,
+)
 
 # A standing skeleton in a unit box (x right, y down), COCO-17 order.
 TEMPLATE = np.array([
