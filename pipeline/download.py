@@ -27,7 +27,8 @@ _RATE_LIMIT = re.compile(r"HTTP Error 429|Too Many Requests|Sign in to confirm|r
 _UNAVAILABLE = re.compile(r"Private video|Video unavailable|has been removed|account .* terminated|not available", re.I)
 _NOT_FOUND = re.compile(r"No such file|HTTP Error 404|Not Found", re.I)
 _UNSUPPORTED = re.compile(r"Unsupported URL|unsupported url scheme|is not a valid URL", re.I)
-_TRANSIENT = re.compile(r"timed out|Temporary failure|Connection (reset|refused|aborted)|HTTP Error 5\d\d|IncompleteRead", re.I)
+_TRANSIENT = re.compile(
+    r"timed out|Temporary failure|Connection (reset|refused|aborted)|HTTP Error 5\d\d|IncompleteRead", re.I)
 
 
 @dataclass
@@ -133,7 +134,8 @@ def _ytdlp_options(dest: Path, opts: DownloadOptions) -> dict[str, Any]:
     }
 
 
-def download_source(source: Source, raw_dir: Path, opts: DownloadOptions, taken_ids: set[str] = frozenset()) -> LedgerRow:
+def download_source(source: Source, raw_dir: Path, opts: DownloadOptions,
+                    taken_ids: set[str] = frozenset()) -> LedgerRow:
     """Download ``source`` into ``raw_dir`` as ``<video_id>.<ext>`` + ``<video_id>.info.json``.
 
     Never raises for a bad source: the returned row says what went wrong. Raises

@@ -68,7 +68,8 @@ def read_sources(path: Path, *, base_dir: Path, allow_file_urls: bool = True) ->
             except ValueError as exc:
                 raise InputError(path, str(exc), row.line) from None
             if video_id in seen_ids:
-                raise InputError(path, f"duplicate video_id {video_id!r} (first on line {seen_ids[video_id]})", row.line)
+                first = seen_ids[video_id]
+                raise InputError(path, f"duplicate video_id {video_id!r} (first on line {first})", row.line)
             seen_ids[video_id] = row.line
         if url in seen_urls:
             raise InputError(path, f"duplicate url (first on line {seen_urls[url]})", row.line)

@@ -78,7 +78,8 @@ def run(root: Path) -> None:
             rows[spec.segment_id] = outcome.value
         else:
             where = f"{ANNOTATIONS}:{spec.line}" if spec.line else spec.video_id
-            failures.append(Failure(spec.segment_id, "trim", outcome.error_class, f"{where}: {outcome.error_message}", now()))
+            message = f"{where}: {outcome.error_message}"
+            failures.append(Failure(spec.segment_id, "trim", outcome.error_class, message, now()))
             log.warning("%s: %s", spec.segment_id, outcome.error_message)
     ordered = [rows[s.segment_id] for s in plan if s.segment_id in rows]
     write_parquet(pa.Table.from_pylist(ordered, schema=INDEX_SCHEMA), seg_dir / INDEX,

@@ -65,7 +65,8 @@ def test_missing_file_and_malformed_url_are_failed_rows_not_crashes(project: Pat
     assert rows["gone"]["status"] == "failed" and rows["gone"]["error_class"] == "not_found"
     assert "deleted.mp4" in rows["gone"]["error_message"] and "No such file" in rows["gone"]["error_message"]
     assert rows["bad"]["error_class"] == "invalid_url"
-    assert rows["bad"]["error_message"].endswith("sources.csv:4: url 'htp:/nowhere' has unsupported scheme 'htp' (use http, https or file)")
+    assert rows["bad"]["error_message"].endswith(
+        "sources.csv:4: url 'htp:/nowhere' has unsupported scheme 'htp' (use http, https or file)")
     failures = pq.read_table(project / "data/raw/_failures.parquet").to_pylist()
     assert [f["item"] for f in failures] == ["manifests/sources.csv:3", "manifests/sources.csv:4"]
 

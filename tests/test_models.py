@@ -116,8 +116,8 @@ def test_rtmpose_decoder_maps_simcc_peaks_back_to_the_image(tmp_path: Path) -> N
 
 
 def test_decode_simcc_takes_the_smaller_maximum() -> None:
-    sx = np.zeros((1, 1, 10)); sx[0, 0, 4] = 0.8
-    sy = np.zeros((1, 1, 12)); sy[0, 0, 9] = 0.3
+    sx, sy = np.zeros((1, 1, 10)), np.zeros((1, 1, 12))
+    sx[0, 0, 4], sy[0, 0, 9] = 0.8, 0.3
     assert decode_simcc(sx, sy).tolist() == [[[2.0, 4.5, pytest.approx(0.3)]]]
 
 
