@@ -23,6 +23,8 @@ examples:
   dance3d run download        fetch the sources listed in manifests/sources.csv
   dance3d run trim            cut the annotated dance segments
   dance3d status              what has been downloaded and cut, and what failed
+  dance3d manifests seed      propose a track manifest for every tracked segment without one
+  dance3d manifests check     validate manifests: every problem as file:line: reason
 """
 
 
@@ -37,6 +39,16 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("stage", choices=STAGES, help="the stage to run")
     sub.add_parser("status", help="summarise downloads, segments and failures",
                    description="Summarise the download ledger, the segment index and every stage's failures.")
+    manifests = sub.add_parser("manifests", help="track manifests for annotators (seed, check)",
+                               description="Track manifests: manifests/tracks/<segment_id>.csv. See ANNOTATING.md.")
+    msub = manifests.add_subparsers(dest="action", required=True, metavar="ACTION")
+    msub.add_parser("seed", help="write a proposal for every tracked segment that has no manifest",
+                    description="Write manifests/tracks/<segment_id>.csv proposals for tracked segments without "
+                                "one. Existing files are never overwritten.")
+    check = msub.add_parser("check", help="validate manifests against their tracks",
+                            description="Report every problem as file:line: reason. Exit code 1 on errors "
+                                        "(warnings alone exit 0).")
+    check.add_argument("files", nargs="*", type=Path, help="manifests to check (default: all)")
     return parser
 
 
@@ -50,12 +62,35 @@ def main(argv: list[str] | None = None) -> int:
         module = importlib.import_module(f"stages.{args.stage}")
         os.chdir(root)
         return run_stage(args.stage, module.run, root)
+    if args.command == "manifests":
+        return _manifests(root, args)
     if args.command == "status":
         from pipeline.status import summarise
 
         print(summarise(root))
         return 0
     return 1
+
+
+def _manifests(root: Path, args: argparse.Namespace) -> int:
+    from pipeline.annotation import check_manifests, proposal_options, seed_manifests
+    from pipeline.params import load_params, stage_params
+
+    params = load_params(root / "params.yaml")
+    if args.action == "seed":
+        written, kept = seed_manifests(root, proposal_options(params))
+        for path in written:
+            print(f"wrote {path.relative_to(root)}")
+        print(f"{len(written)} manifests proposed, {len(kept)} existing left untouched")
+        return 0
+    min_clip = float(stage_params(params, "clean").get("min_clip_seconds", 2.0))
+    files = [f if f.is_absolute() else Path.cwd() / f for f in args.files]
+    problems = check_manifests(root, files, min_clip)
+    for problem in problems:
+        print(problem)
+    errors = sum(1 for p in problems if not p.warning)
+    print(f"{errors} errors, {len(problems) - errors} warnings")
+    return 1 if errors else 0
 
 
 if __name__ == "__main__":

@@ -136,13 +136,31 @@ def format_seconds(value: float) -> str:
     return f"{value:.3f}"
 
 
-def write_manifest(path: Path, spans: list[Span]) -> None:
-    """Write spans (sorted by track and start) in the manifest format, atomically."""
+TRACKS_COMMENT = "tracks fingerprint: "
+
+
+def write_manifest(path: Path, spans: list[Span], tracks_fingerprint: str = "") -> None:
+    """Write spans (sorted by track and start) in the manifest format, atomically.
+
+    A leading comment records which tracking result the spans refer to, so the checker
+    can warn when the tracks were redone since (their ids may have changed).
+    """
     rows = []
     for s in sorted(spans, key=lambda s: (s.track_id, s.start)):
         rows.append([s.track_id, format_seconds(s.start), format_seconds(s.end), "yes" if s.keep else "no", s.note,
                      *(s.info.get(c, "") for c in INFO)])
-    write_csv(path, HEADER, rows)
+    comments = [f"{TRACKS_COMMENT}{tracks_fingerprint}"] if tracks_fingerprint else []
+    comments.append("start/end: QC timecodes (s) of the first and last frame to keep; keep: yes/no. See ANNOTATING.md")
+    write_csv(path, HEADER, rows, comments)
+
+
+def recorded_tracks_fingerprint(path: Path) -> str:
+    for line in Path(path).read_text(encoding="utf-8-sig").splitlines():
+        if not line.startswith("#"):
+            break
+        if TRACKS_COMMENT in line:
+            return line.split(TRACKS_COMMENT, 1)[1].strip()
+    return ""
 
 
 def check_manifest_file(path: Path, tracks_dir: Path, min_clip_seconds: float) -> tuple[list[Span], list[Problem]]:
@@ -157,4 +175,9 @@ def check_manifest_file(path: Path, tracks_dir: Path, min_clip_seconds: float) -
     spans, problems = parse_manifest(path)
     if any(p.line is not None and "column" in p.message for p in problems):
         return spans, problems
-    return spans, problems + check_spans(path, spans, load_tracks(tracks_file), min_clip_seconds)
+    tracks = load_tracks(tracks_file)
+    recorded = recorded_tracks_fingerprint(path)
+    if recorded and recorded != tracks.fingerprint:
+        problems.append(Problem(str(path), None, "the tracks were redone since this manifest was seeded: "
+                                                 "check that the track ids still match the QC video", warning=True))
+    return spans, problems + check_spans(path, spans, tracks, min_clip_seconds)

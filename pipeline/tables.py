@@ -84,9 +84,12 @@ def neutralise_cell(value: str) -> str:
     return value
 
 
-def write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[object]]) -> None:
+def write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[object]],
+              comments: Sequence[str] = ()) -> None:
     """Write a CSV atomically with ``\\n`` line ends and neutralised text cells."""
     buf = io.StringIO()
+    for comment in comments:  # leading "# " lines, which read_csv skips
+        buf.write(f"# {comment}\n")
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(header)
     for row in rows:

@@ -59,6 +59,18 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     assert second.returncode == 0, second.stderr[-3000:]
     assert "didn't change, skipping" in second.stdout or "up to date" in second.stdout
 
+    # An annotator edits one manifest: clean re-runs, nothing upstream does.
+    subprocess.run([sys.executable, "-m", "pipeline.cli", "manifests", "seed"], cwd=root, check=True,
+                   capture_output=True)
+    manifest = root / "manifests/tracks/solo_dance_001.csv"
+    manifest.write_text(manifest.read_text().replace(",yes,", ",no,"))
+    third = _dvc(root, "repro")
+    assert third.returncode == 0, third.stderr[-3000:]
+    ran = [line.split("'")[1] for line in third.stdout.splitlines() if line.startswith("Running stage")]
+    assert ran == ["clean"]
+    assert not pq.read_table(root / "data/clean/solo_dance_001.parquet").num_rows
+    assert pq.read_table(root / "data/clean/solo_dance_000.parquet").num_rows == 270
+
     status = subprocess.run([sys.executable, "-m", "pipeline.cli", "status"], cwd=root,
                             capture_output=True, text=True, check=True).stdout
     assert "download: 4 sources, 4 ok" in status

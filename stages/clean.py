@@ -1,0 +1,126 @@
+"""clean stage: data/tracks + manifests/tracks -> data/clean/<segment_id>.parquet (one row per clip frame)."""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+from pathlib import Path
+
+import pyarrow.parquet as pq
+
+from pipeline.annotation import proposal_options, tracked_segments
+from pipeline.clean import SCHEMA_VERSION, CleanOptions, apply_manifest, clips_table
+from pipeline.errors import InputError, InputErrors
+from pipeline.itemstage import WorkItem, run_item_stage
+from pipeline.manifests import check_manifest_file
+from pipeline.params import load_params, stage_params
+from pipeline.paths import CLEAN, METRICS, TRACK_MANIFESTS, TRACKS
+from pipeline.proposals import propose
+from pipeline.stage import run_stage, setup_logging
+from pipeline.storage import atomic_path, fingerprint, read_meta, sha256_file, write_parquet
+from pipeline.trackfile import load_tracks
+
+log = logging.getLogger("dance3d.clean")
+UNANNOTATED = ("accept", "skip")
+
+
+def clean_segment(job: tuple) -> dict:
+    tracks_file, manifest, out, opts, proposal_opts, params, inputs, fp = job
+    tracks = load_tracks(tracks_file)
+    if manifest is not None:
+        spans, _ = check_manifest_file(manifest, tracks_file.parent, opts.min_clip_seconds)
+        source = "manifest"
+    else:
+        spans, source = propose(tracks, proposal_opts), "proposal"
+    result = apply_manifest(tracks, spans, opts)
+    extra = {"fingerprint": fp, "segment_id": tracks.segment_id, "fps": tracks.fps, "width": tracks.width,
+             "height": tracks.height, "frames": tracks.frames_total, "spans_from": source,
+             "dropped_short": result.dropped_short}
+    write_parquet(clips_table(result.clips, tracks.fps), out, schema_version=SCHEMA_VERSION, params=params,
+                  inputs=inputs, extra=extra)
+    return {"clips": len(result.clips), "clip_frames": sum(len(c.frame) for c in result.clips),
+            "dropped_short": result.dropped_short, "interpolated_frames": result.interpolated_frames,
+            "source": source, "fps": tracks.fps}
+
+
+def run(root: Path) -> None:
+    params = stage_params(load_params(root / "params.yaml"), "clean")
+    all_params = load_params(root / "params.yaml")
+    opts = CleanOptions(max_gap=int(params.get("max_gap", 12)),
+                        min_clip_seconds=float(params.get("min_clip_seconds", 2.0)))
+    policy = str(params.get("unannotated", "accept"))
+    if policy not in UNANNOTATED:
+        raise InputError(root / "params.yaml", f"clean.unannotated must be one of {UNANNOTATED}, not {policy!r}")
+    proposal_opts = proposal_options(all_params)
+    segments = tracked_segments(root)
+    _refuse_invalid_manifests(root, segments, opts.min_clip_seconds)
+    items, skipped = [], []
+    for seg_id in segments:
+        tracks_file = root / TRACKS / f"{seg_id}.parquet"
+        manifest = root / TRACK_MANIFESTS / f"{seg_id}.csv"
+        if not manifest.exists():
+            if policy == "skip":
+                skipped.append(seg_id)
+                continue
+            manifest = None
+        inputs = {"tracks": read_meta(tracks_file).get("fingerprint", ""),
+                  "manifest": sha256_file(manifest) if manifest else f"proposal:{proposal_opts}"}
+        fp = fingerprint(SCHEMA_VERSION, inputs, params)
+        out = root / CLEAN / f"{seg_id}.parquet"
+        job = (tracks_file, manifest, out, opts, proposal_opts, params, inputs, fp)
+        items.append(WorkItem(seg_id, fp, (out,), job))
+    if skipped:
+        log.info("skipping %d segments without a manifest (clean.unannotated: skip): %s", len(skipped),
+                 ", ".join(skipped))
+    run_item_stage("clean", items, clean_segment, out_dirs=[root / CLEAN], params=params, kind="process")
+    _write_metrics(root, skipped)
+
+
+def _refuse_invalid_manifests(root: Path, segments: list[str], min_clip_seconds: float) -> None:
+    """The clean stage runs the checker's checks and refuses invalid manifests, naming them."""
+    folder = root / TRACK_MANIFESTS
+    errors: list[InputError] = []
+    for path in sorted(folder.glob("*.csv")) if folder.exists() else []:
+        for problem in check_manifest_file(path, root / TRACKS, min_clip_seconds)[1]:
+            if problem.warning:
+                log.warning("%s", problem)
+            else:
+                errors.append(InputError(problem.path, problem.message, problem.line))
+    if errors:
+        for error in errors:
+            log.error("%s", error)
+        raise InputErrors(errors)
+
+
+def _write_metrics(root: Path, skipped: list[str]) -> None:
+    """metrics/clean.json summarises every segment's current output (new and up to date)."""
+    clips = clip_frames = dropped = interpolated = 0
+    sources = {"manifest": 0, "proposal": 0}
+    minutes = 0.0
+    for path in sorted((root / CLEAN).glob("*.parquet")):
+        if path.name.startswith("_"):
+            continue
+        meta = read_meta(path)
+        table = pq.read_table(path, columns=["clip_id", "interpolated"])
+        clips += len(set(table.column("clip_id").to_pylist()))
+        clip_frames += table.num_rows
+        interpolated += sum(table.column("interpolated").to_pylist())
+        minutes += table.num_rows / meta["fps"] / 60
+        sources[meta.get("spans_from", "manifest")] += 1
+        dropped += int(meta.get("dropped_short", 0))
+    metrics = {"segments_from_manifests": sources["manifest"], "segments_from_proposals": sources["proposal"],
+               "segments_skipped": len(skipped), "clips": clips, "clip_minutes": round(minutes, 3),
+               "interpolated_frame_share": round(interpolated / clip_frames, 4) if clip_frames else 0.0,
+               "dropped_short_clips": dropped}
+    with atomic_path(root / METRICS / "clean.json") as tmp:
+        tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n")
+
+
+def main() -> int:
+    setup_logging()
+    return run_stage("clean", run)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,217 @@
+"""Track manifests: proposals, the checker's every error, and what clean makes of an edit."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from pipeline.annotation import check_manifests, seed_manifests
+from pipeline.errors import InputErrors
+from pipeline.pose2d import POSE2D_SCHEMA
+from pipeline.proposals import ProposalOptions
+from pipeline.storage import write_parquet
+from tests.conftest import ffmpeg, run_stages, set_params, write_sources
+from tests.test_tracking import person
+
+FPS = 24.0
+HEADER = "track_id,start,end,keep,note,frames,mean_score,box_height,motion,reason\n"
+
+
+def write_tracks(root: Path, seg_id: str, people: dict[int, list[int]], fps: float = FPS) -> Path:
+    """A synthetic data/tracks file: track id -> the frames it is seen in (a dancer swaying)."""
+    rows = []
+    for track_id, frames in people.items():
+        for f in frames:
+            box, kp = person(300 + 200 * track_id + 40 * np.sin(f / 6), 400, 500, phase=f / 3)
+            rows.append((f, track_id, box, kp))
+    rows.sort(key=lambda r: (r[0], r[1]))
+    n = len(rows)
+    table = pa.Table.from_arrays([
+        pa.array([r[0] for r in rows], pa.int32()), pa.array([r[0] / fps for r in rows], pa.float64()),
+        pa.array([0] * n, pa.int8()),
+        pa.FixedSizeListArray.from_arrays(pa.array(np.ravel([r[2] for r in rows]), pa.float32()), 4),
+        pa.array([0.9] * n, pa.float32()),
+        pa.FixedSizeListArray.from_arrays(pa.array(np.ravel([r[3] for r in rows]), pa.float32()), 51),
+        pa.array([True] * n, pa.bool_()),
+    ], schema=POSE2D_SCHEMA).append_column("track_id", pa.array([r[1] for r in rows], pa.int32()))
+    path = root / "data/tracks" / f"{seg_id}.parquet"
+    frames_total = max(max(f) for f in people.values()) + 1
+    write_parquet(table, path, schema_version=1, extra={"segment_id": seg_id, "fps": fps, "frames": frames_total,
+                                                        "width": 1280, "height": 720, "fingerprint": "t1"})
+    return path
+
+
+def write_manifest_text(root: Path, seg_id: str, body: str, header: str = HEADER) -> Path:
+    path = root / "manifests/tracks" / f"{seg_id}.csv"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(header + body)
+    return path
+
+
+@pytest.fixture
+def seg(project: Path) -> Path:
+    # Track 1 over 0-9.958 s (frames 0-239), track 2 over 2-6 s (frames 48-143).
+    write_tracks(project, "vid_000", {1: list(range(240)), 2: list(range(48, 144))})
+    return project
+
+
+def problems(root: Path, body: str, header: str = HEADER) -> list[str]:
+    path = write_manifest_text(root, "vid_000", body, header)
+    return [str(p).replace(str(path), "M") for p in check_manifests(root, [path], 2.0)]
+
+
+def test_valid_manifest_has_no_problems(seg: Path) -> None:
+    assert problems(seg, "1,0.000,9.958,yes,,,,,,\n2,2.000,5.958,no,audience,,,,,\n") == []
+
+
+@pytest.mark.parametrize("body, expected", [
+    ("7,0,1,yes,,,,,,\n1,0,9,yes,,,,,,\n2,2,5,no,,,,,,\n",
+     "M:2: unknown track id 7 (tracks in vid_000: 1, 2)"),
+    ("1,5,5,yes,,,,,,\n2,2,5,no,,,,,,\n", "M:2: start 5.000 s is not before end 5.000 s"),
+    ("1,0,9,yes,,,,,,\n2,1.0,5,no,,,,,,\n", "M:3: span 1.000-5.000 s is outside track 2 (2.000-5.958 s)"),
+    ("1,0,5,yes,,,,,,\n1,4,9,no,,,,,,\n2,2,5,no,,,,,,\n",
+     "M:3: span 4.000-9.000 s of track 1 overlaps line 2 (0.000-5.000 s)"),
+    ("1,0,9,maybe,,,,,,\n2,2,5,no,,,,,,\n", "M:2: keep must be yes or no, not 'maybe'"),
+    ("1,0,9,yes,,,,,,\n1,0,9,yes,,,,,,\n2,2,5,no,,,,,,\n", "M:3: duplicate of line 2"),
+    ("1,0,9,yes,,,,,,\nx,2,5,no,,,,,,\n", "M:3: track_id 'x' is not a whole number >= 0"),
+    ("1,0:0:1.5,oops,yes,,,,,,\n2,2,5,no,,,,,,\n", "M:2: end: cannot read time 'oops' (use seconds like 12.5 or "
+                                                   "HH:MM:SS.mmm)"),
+])
+def test_checker_errors_name_file_line_and_reason(seg: Path, body: str, expected: str) -> None:
+    assert expected in problems(seg, body)
+
+
+def test_missing_and_extra_header_columns(seg: Path) -> None:
+    assert problems(seg, "1,0,9,yes\n", header="track_id,start,end,keep\n") == [
+        "M:1: missing column(s) note, frames, mean_score, box_height, motion, reason in header "
+        "['track_id', 'start', 'end', 'keep']"]
+    (error,) = problems(seg, "1,0,9,yes,,,,,,,x\n", header=HEADER.strip() + ",colour\n")
+    assert error.startswith("M:1: unknown column(s) colour")
+
+
+def test_manifest_for_an_unknown_segment(seg: Path) -> None:
+    path = write_manifest_text(seg, "ghost_000", "1,0,1,yes,,,,,,\n")
+    (problem,) = check_manifests(seg, [path], 2.0)
+    assert str(problem) == (f"{path}: manifest for an unknown segment: no {seg / 'data/tracks/ghost_000.parquet'} "
+                            "(is the file name a tracked segment id?)")
+
+
+def test_suspicious_but_valid_input_gives_warnings_only(seg: Path) -> None:
+    found = problems(seg, "1,0,1,yes,,,,,,\n")
+    assert found == ["M:2: warning: kept span is 1.00 s, shorter than clean.min_clip_seconds (2.0 s): "
+                     "it will be dropped", "M: warning: track 2 has no row: it will be dropped"]
+
+
+def test_check_command_exit_codes(seg: Path) -> None:
+    write_manifest_text(seg, "vid_000", "1,0,9,yes,,,,,,\n2,2,5,no,,,,,,\n")
+    ok = subprocess.run([sys.executable, "-m", "pipeline.cli", "--root", str(seg), "manifests", "check"],
+                        capture_output=True, text=True)
+    assert ok.returncode == 0 and ok.stdout.strip() == "0 errors, 0 warnings"
+    write_manifest_text(seg, "vid_000", "1,0,9,yes,,,,,,\n9,2,5,no,,,,,,\n")
+    bad = subprocess.run([sys.executable, "-m", "pipeline.cli", "--root", str(seg), "manifests", "check"],
+                         capture_output=True, text=True)
+    assert bad.returncode == 1
+    assert "vid_000.csv:3: unknown track id 9" in bad.stdout
+
+
+def clips_of(root: Path, seg_id: str = "vid_000") -> dict[str, tuple[int, int, int]]:
+    """clip id -> (first frame, last frame, interpolated frames)."""
+    table = pq.read_table(root / "data/clean" / f"{seg_id}.parquet").to_pandas()
+    return {cid: (int(g.frame.min()), int(g.frame.max()), int(g.interpolated.sum()))
+            for cid, g in table.groupby("clip_id")}
+
+
+def test_editing_a_manifest_changes_clean_output_exactly(seg: Path) -> None:
+    write_manifest_text(seg, "vid_000", "1,0.000,9.958,yes,,,,,,\n2,2.000,5.958,yes,,,,,,\n")
+    run_stages(seg, "clean")
+    assert clips_of(seg) == {"vid_000_1_0": (0, 239, 0), "vid_000_2_0": (48, 143, 0)}
+    # The annotator cuts track 1 in two around a swap at 3-5 s and rejects track 2.
+    write_manifest_text(seg, "vid_000", "1,0.000,3.000,yes,,,,,,\n1,5.000,9.958,yes,,,,,,\n"
+                                        "2,2.000,5.958,no,audience,,,,,\n")
+    run_stages(seg, "clean")
+    assert clips_of(seg) == {"vid_000_1_0": (0, 72, 0), "vid_000_1_1": (120, 239, 0)}
+
+
+def test_short_gaps_are_filled_long_gaps_split_short_clips_drop(project: Path) -> None:
+    # Seen 0-149 with a 5-frame hole at 50-54, then 180-199 (0.8 s), then 230-239 (a stub).
+    frames = [f for f in range(150) if not 50 <= f < 55] + list(range(180, 200)) + list(range(230, 240))
+    write_tracks(project, "vid_000", {1: frames})
+    write_manifest_text(project, "vid_000", "1,0,9.958,yes,,,,,,\n")
+    set_params(project, "clean", max_gap=12, min_clip_seconds=2.0)
+    run_stages(project, "clean")
+    assert clips_of(project) == {"vid_000_1_0": (0, 149, 5)}  # the 30-frame gaps split; short pieces drop
+    table = pq.read_table(project / "data/clean/vid_000.parquet").to_pandas()
+    filled = table[table.interpolated]
+    assert sorted(filled.frame) == [50, 51, 52, 53, 54]
+    before, after = table[table.frame == 49].iloc[0], table[table.frame == 55].iloc[0]
+    middle = table[table.frame == 52].iloc[0]
+    assert np.allclose(middle.box, before.box + (after.box - before.box) * 3 / 6, atol=1e-3)
+    metrics = json.loads((project / "metrics/clean.json").read_text())
+    assert metrics["dropped_short_clips"] == 2  # 180-199 (0.8 s) and 230-239
+
+
+def test_unannotated_segments_follow_the_param(seg: Path) -> None:
+    set_params(seg, "clean", unannotated="skip")
+    run_stages(seg, "clean")
+    assert not (seg / "data/clean/vid_000.parquet").exists()
+    set_params(seg, "clean", unannotated="accept")
+    run_stages(seg, "clean")
+    assert set(clips_of(seg)) == {"vid_000_1_0", "vid_000_2_0"}  # both sway: proposals keep them
+
+
+def test_clean_refuses_an_invalid_manifest_naming_it(seg: Path) -> None:
+    path = write_manifest_text(seg, "vid_000", "1,0,9,yes,,,,,,\n5,2,5,no,,,,,,\n")
+    with pytest.raises(InputErrors, match=rf"{path}:3: unknown track id 5"):
+        run_stages(seg, "clean")
+
+
+def test_reseeding_never_overwrites_an_edited_manifest(seg: Path) -> None:
+    written, kept = seed_manifests(seg, ProposalOptions())
+    assert [p.name for p in written] == ["vid_000.csv"] and kept == []
+    edited = written[0].read_text().replace(",yes,", ",no,")
+    written[0].write_text(edited)
+    written2, kept2 = seed_manifests(seg, ProposalOptions())
+    assert written2 == [] and kept2 == written
+    assert written[0].read_text() == edited
+
+
+@pytest.fixture
+def dancers_and_seated_group(tmp_path: Path, media_dir: Path) -> Path:
+    """Two real dancers side by side above three seated musicians (static), 8 s, built with ffmpeg."""
+    out = tmp_path / "stage.mp4"
+    videos = media_dir / "videos"
+    ffmpeg("-i", str(videos / "dance_single_music_musepose.mp4"), "-i", str(videos / "dance_solo_384x496_30fps.mp4"),
+           "-i", str(videos / "musicians_trio_music_raga.mp4"), "-filter_complex",
+           "[0:v]fps=24,scale=-2:496[a];[1:v]fps=24[b];[a][b]hstack=inputs=2[top];"
+           "[2:v]fps=24,scale=664:-2[c];[top][c]vstack=inputs=2[v]",
+           "-map", "[v]", "-map", "0:a", "-t", "8", "-c:v", "libx264", "-preset", "ultrafast", "-c:a", "aac", str(out))
+    return out
+
+
+def test_seeding_keeps_the_dancers_and_rejects_the_static_group(project: Path, dancers_and_seated_group: Path,
+                                                                models_dir: Path, monkeypatch) -> None:
+    monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
+    write_sources(project, [("stage", dancers_and_seated_group)])
+    set_params(project, "trim", unannotated="whole")
+    run_stages(project, "download", "trim", "pose2d", "track")
+    (path,), _ = seed_manifests(project, ProposalOptions())
+    rows = pq.read_table(project / "data/tracks/stage_000.parquet").to_pandas()
+    centre_y = {t: float(np.median([(b[1] + b[3]) / 2 for b in g.box])) for t, g in rows.groupby("track_id") if t >= 0}
+    manifest = list(csv.DictReader(line for line in path.read_text().splitlines() if not line.startswith("#")))
+    dancers = {int(r["track_id"]) for r in manifest if centre_y[int(r["track_id"])] < 496}
+    seated = {int(r["track_id"]) for r in manifest if centre_y[int(r["track_id"])] >= 496}
+    assert len(dancers) == 2 and seated
+    for row in manifest:
+        if int(row["track_id"]) in dancers:
+            assert row["keep"] == "yes", row
+        else:
+            assert row["keep"] == "no" and row["reason"], row
+    assert any("nearly static" in r["reason"] for r in manifest if int(r["track_id"]) in seated)
