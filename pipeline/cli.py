@@ -8,6 +8,7 @@ import os
 import sys
 from pathlib import Path
 
+from pipeline.errors import Dance3dError
 from stages import STAGES
 
 DESCRIPTION = """\
@@ -25,6 +26,10 @@ examples:
   dance3d status              what has been downloaded and cut, and what failed
   dance3d manifests seed      propose a track manifest for every tracked segment without one
   dance3d manifests check     validate manifests: every problem as file:line: reason
+  dance3d render data/motion24/musepose_dance_000.parquet musepose_dance_000_1_0 clip.mp4
+                              draw a 3D clip (front and side views) with its music
+  dance3d models convert-videopose3d pretrained_h36m_detectron_coco.bin models/lifter.onnx
+                              use the official VideoPose3D weights as the lifter
 """
 
 
@@ -49,6 +54,21 @@ def _parser() -> argparse.ArgumentParser:
                             description="Report every problem as file:line: reason. Exit code 1 on errors "
                                         "(warnings alone exit 0).")
     check.add_argument("files", nargs="*", type=Path, help="manifests to check (default: all)")
+    render = sub.add_parser("render", help="draw a 3D motion clip with its audio to an mp4",
+                            description="Draw one clip of a motion file (data/pose3d, data/smooth or data/motion24) "
+                                        "as front and side views, with the segment's audio.")
+    render.add_argument("motion", type=Path, help="a motion Parquet file")
+    render.add_argument("clip_id", help="the clip to draw (see the file's clip_id column)")
+    render.add_argument("out", type=Path, help="the mp4 to write")
+    models = sub.add_parser("models", help="model utilities (convert-videopose3d)")
+    models_sub = models.add_subparsers(dest="action", required=True, metavar="ACTION")
+    convert = models_sub.add_parser(
+        "convert-videopose3d", help="convert an official VideoPose3D checkpoint to the lifter ONNX",
+        description="Load an official VideoPose3D checkpoint (e.g. pretrained_h36m_detectron_coco.bin: 17 COCO "
+                    "joints in, 17 Human3.6M joints out) and export it as the ONNX lifter the lift stage uses. "
+                    "Needs the `train` extra (torch). The official weights are CC BY-NC 4.0.")
+    convert.add_argument("checkpoint", type=Path)
+    convert.add_argument("out", type=Path)
     return parser
 
 
@@ -62,6 +82,18 @@ def main(argv: list[str] | None = None) -> int:
         module = importlib.import_module(f"stages.{args.stage}")
         os.chdir(root)
         return run_stage(args.stage, module.run, root)
+    if args.command == "render":
+        return _render(root, args)
+    if args.command == "models":
+        from pipeline.lifting.convert import convert_videopose3d
+
+        try:
+            model = convert_videopose3d(args.checkpoint, args.out)
+        except Dance3dError as exc:
+            print(f"dance3d: {exc}", file=sys.stderr)
+            return 2
+        print(f"wrote {args.out} (receptive field {model.receptive_field} frames)")
+        return 0
     if args.command == "manifests":
         return _manifests(root, args)
     if args.command == "status":
@@ -70,6 +102,25 @@ def main(argv: list[str] | None = None) -> int:
         print(summarise(root))
         return 0
     return 1
+
+
+def _render(root: Path, args: argparse.Namespace) -> int:
+    from pipeline.motionfile import read_clips
+    from pipeline.paths import SEGMENTS
+    from pipeline.render3d import render_clip
+    from pipeline.storage import read_meta
+
+    clips = {c.clip_id: c for c in read_clips(args.motion)}
+    if args.clip_id not in clips:
+        print(f"dance3d: {args.motion}: no clip {args.clip_id!r}; clips: {', '.join(clips) or 'none'}", file=sys.stderr)
+        return 2
+    clip = clips[args.clip_id]
+    meta = read_meta(args.motion)
+    fps = float(meta.get("fps", 24.0))
+    audio = root / SEGMENTS / f"{meta.get('segment_id', '')}.wav"
+    render_clip(clip.joints, clip.time, fps, args.out, audio=audio, title=args.clip_id)
+    print(f"wrote {args.out}")
+    return 0
 
 
 def _manifests(root: Path, args: argparse.Namespace) -> int:

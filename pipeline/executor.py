@@ -36,6 +36,16 @@ def _call(fn: Callable[[Any], Any], item: Any) -> Outcome:
         return Outcome(item, error_class=type(exc).__name__, error_message=message)
 
 
+def _isolated(fn: Callable[[Any], Any], item: Any, initializer, initargs: tuple) -> Outcome:
+    with cf.ProcessPoolExecutor(1, mp_context=mp.get_context("spawn"), initializer=initializer,
+                                initargs=initargs) as pool:
+        try:
+            return pool.submit(_call, fn, item).result()
+        except cf.process.BrokenProcessPool:
+            return Outcome(item, error_class="WorkerCrashed",
+                           error_message="the worker process died (crash or out of memory) on this item")
+
+
 def run_items(
     fn: Callable[[Any], Any],
     items: Sequence[Any],
@@ -71,14 +81,23 @@ def run_items(
             )
         else:
             raise ValueError(f"unknown executor kind {kind!r} (process or thread)")
+        crashed = []
         with pool:
-            futures = [pool.submit(_call, fn, item) for item in items]
+            futures = {pool.submit(_call, fn, item): item for item in items}
             try:
                 for future in cf.as_completed(futures):
+                    try:
+                        outcome = future.result()
+                    except cf.process.BrokenProcessPool:
+                        crashed.append(futures[future])  # this one, or a neighbour, killed the worker
+                        continue
                     bar.update()
-                    yield future.result()
+                    yield outcome
             finally:
                 for future in futures:
                     future.cancel()
+        for item in crashed:  # alone in a fresh process each: only the real culprit fails
+            bar.update()
+            yield _isolated(fn, item, initializer, tuple(initargs))
     finally:
         bar.close()

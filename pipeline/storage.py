@@ -67,6 +67,15 @@ def fingerprint(*parts: Any) -> str:
     return hashlib.sha256(blob.encode()).hexdigest()[:20]
 
 
+def code_fingerprint(*modules: Any) -> str:
+    """A hash of the source of the modules that make an output: changed code redoes the items
+    (DVC re-runs the stage when its code changes; this makes the stage redo its items too)."""
+    h = hashlib.sha256()
+    for module in modules:
+        h.update(Path(module.__file__).read_bytes())
+    return h.hexdigest()[:16]
+
+
 def write_parquet(
     table: pa.Table,
     path: Path,

@@ -1,3 +1,3 @@
 """Thin DVC stage entry points: read params, list work items, call pipeline/, write outputs."""
 
-STAGES = ("download", "trim", "pose2d", "track", "clean")
+STAGES = ("download", "trim", "pose2d", "track", "clean", "train_lifter", "lift", "smooth", "resample")

@@ -9,6 +9,9 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 
+import pipeline.clean
+import pipeline.manifests
+import pipeline.proposals
 from pipeline.annotation import proposal_options, tracked_segments
 from pipeline.clean import SCHEMA_VERSION, CleanOptions, apply_manifest, clips_table
 from pipeline.errors import InputError, InputErrors
@@ -18,11 +21,12 @@ from pipeline.params import load_params, stage_params
 from pipeline.paths import CLEAN, METRICS, TRACK_MANIFESTS, TRACKS
 from pipeline.proposals import propose
 from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import atomic_path, fingerprint, read_meta, sha256_file, write_parquet
+from pipeline.storage import atomic_path, code_fingerprint, fingerprint, read_meta, sha256_file, write_parquet
 from pipeline.trackfile import load_tracks
 
 log = logging.getLogger("dance3d.clean")
 UNANNOTATED = ("accept", "skip")
+CODE = code_fingerprint(pipeline.clean, pipeline.manifests, pipeline.proposals)
 
 
 def clean_segment(job: tuple) -> dict:
@@ -66,7 +70,7 @@ def run(root: Path) -> None:
             manifest = None
         inputs = {"tracks": read_meta(tracks_file).get("fingerprint", ""),
                   "manifest": sha256_file(manifest) if manifest else f"proposal:{proposal_opts}"}
-        fp = fingerprint(SCHEMA_VERSION, inputs, params)
+        fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out = root / CLEAN / f"{seg_id}.parquet"
         job = (tracks_file, manifest, out, opts, proposal_opts, params, inputs, fp)
         items.append(WorkItem(seg_id, fp, (out,), job))

@@ -6,6 +6,10 @@ import logging
 import sys
 from pathlib import Path
 
+import pipeline.media
+import pipeline.models.detector
+import pipeline.models.pose
+import pipeline.pose2d
 from pipeline.catalog import read_index
 from pipeline.itemstage import WorkItem, run_item_stage
 from pipeline.models.detector import RTMDetDetector
@@ -21,11 +25,12 @@ from pipeline.pose2d import (
     poses_to_table,
 )
 from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import fingerprint, sha256_file, write_parquet
+from pipeline.storage import code_fingerprint, fingerprint, sha256_file, write_parquet
 
 log = logging.getLogger("dance3d.pose2d")
 
 _MODELS: dict[str, object] = {}  # per worker process: sessions are built once, not per segment
+CODE = code_fingerprint(pipeline.pose2d, pipeline.models.detector, pipeline.models.pose, pipeline.media)
 
 
 def load_models(det_path: str, det_input: tuple, pose_path: str, pose_kind: str, pose_input: tuple,
@@ -70,7 +75,7 @@ def run(root: Path) -> None:
     items = []
     for seg in read_index(seg_dir).values():
         inputs = {"segment": seg["fingerprint"], **model_hashes}
-        fp = fingerprint(SCHEMA_VERSION, inputs, params)
+        fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out = out_dir / f"{seg['segment_id']}.parquet"
         items.append(WorkItem(seg["segment_id"], fp, (out,),
                               (seg_dir / seg["path"], out, seg, opts, params, inputs, fp)))

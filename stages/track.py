@@ -10,16 +10,19 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+import pipeline.qc
+import pipeline.tracking
 from pipeline.catalog import read_index
 from pipeline.itemstage import WorkItem, run_item_stage
 from pipeline.params import load_params, stage_params
 from pipeline.paths import POSE2D, QC, SEGMENTS, TRACKS
 from pipeline.qc import render_qc
 from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import fingerprint, read_meta, write_parquet
+from pipeline.storage import code_fingerprint, fingerprint, read_meta, write_parquet
 from pipeline.tracking import TrackerOptions, assign_tracks
 
 SCHEMA_VERSION = 1
+CODE = code_fingerprint(pipeline.tracking, pipeline.qc)
 
 
 def track_segment(job: tuple) -> dict:
@@ -51,7 +54,7 @@ def run(root: Path) -> None:
         pose_file = root / POSE2D / f"{seg_id}.parquet"
         if not pose_file.exists():
             continue  # pose2d failed for it: already in pose2d's failures
-        fp = fingerprint(SCHEMA_VERSION, read_meta(pose_file).get("fingerprint"), params)
+        fp = fingerprint(SCHEMA_VERSION, read_meta(pose_file).get("fingerprint"), params, CODE)
         out = root / TRACKS / f"{seg_id}.parquet"
         qc_out = root / QC / f"{seg_id}.mp4" if qc_enabled else None
         outputs = (out, qc_out) if qc_out else (out,)

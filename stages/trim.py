@@ -9,6 +9,8 @@ from pathlib import Path
 
 import pyarrow as pa
 
+import pipeline.media
+import pipeline.trim
 from pipeline.catalog import INDEX, read_index, read_ledger
 from pipeline.errors import InputErrors
 from pipeline.executor import run_items
@@ -18,10 +20,11 @@ from pipeline.params import load_params, stage_params
 from pipeline.paths import ANNOTATIONS, RAW, SEGMENTS
 from pipeline.segments import SegmentSpec, plan_segments
 from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import fingerprint, remove_stale_temps, write_parquet
+from pipeline.storage import code_fingerprint, fingerprint, remove_stale_temps, write_parquet
 from pipeline.trim import TrimOptions, cut_segment
 
 log = logging.getLogger("dance3d.trim")
+CODE = code_fingerprint(pipeline.trim, pipeline.media)
 
 SCHEMA_VERSION = 1
 INDEX_SCHEMA = pa.schema(
@@ -63,7 +66,7 @@ def run(root: Path) -> None:
     jobs = []
     for spec in plan:
         src = raw_dir / available[spec.video_id]["path"]
-        fp = fingerprint(SCHEMA_VERSION, available[spec.video_id]["sha256"], spec.start, spec.end, asdict(opts))
+        fp = fingerprint(SCHEMA_VERSION, available[spec.video_id]["sha256"], spec.start, spec.end, asdict(opts), CODE)
         old = previous.get(spec.segment_id)
         if old and old["fingerprint"] == fp and (seg_dir / old["path"]).exists():
             rows[spec.segment_id] = old

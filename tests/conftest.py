@@ -94,3 +94,8 @@ def run_stages(root: Path, *names: str) -> None:
 
     for name in names:
         importlib.import_module(f"stages.{name}").run(root)
+
+
+@pytest.fixture(scope="session")
+def mocap_dir() -> Path:
+    return _asset_dir("DANCE3D_MOCAP", "perfume/aachan.bvh")

@@ -69,3 +69,19 @@ def test_formula_cells_are_neutralised_on_write(tmp_path: Path) -> None:
     path = tmp_path / "out.csv"
     write_csv(path, ["a", "note"], [[1, "+cmd"], [2, "fine"]])
     assert path.read_text() == "a,note\n1,'+cmd\n2,fine\n"
+
+
+def _crash_on_three(x: int) -> int:
+    if x == 3:
+        import os
+
+        os._exit(1)  # a segfault or the OOM killer, as far as the pool can tell
+    return x * 10
+
+
+def test_a_crashing_worker_fails_only_its_own_item() -> None:
+    from pipeline.executor import run_items
+
+    outcomes = {o.item: o for o in run_items(_crash_on_three, [1, 2, 3, 4, 5], workers=2)}
+    assert {i: o.value for i, o in outcomes.items() if o.ok} == {1: 10, 2: 20, 4: 40, 5: 50}
+    assert outcomes[3].error_class == "WorkerCrashed"

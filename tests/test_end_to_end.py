@@ -2,16 +2,18 @@
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from tests.conftest import PROJECT
+from tests.conftest import PROJECT, set_params
 
 
 def _copy_project(dest: Path) -> Path:
@@ -33,11 +35,15 @@ def _dvc(root: Path, *args: str) -> subprocess.CompletedProcess:
 
 
 @pytest.mark.slow
-def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Path, monkeypatch) -> None:
+def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Path, mocap_dir: Path,
+                                 monkeypatch) -> None:
     monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
+    monkeypatch.setenv("DANCE3D_MOCAP", str(mocap_dir))
     root = _copy_project(tmp_path / "dance3d")
     (root / "demo").mkdir(exist_ok=True)
     (root / "demo/media").symlink_to(media_dir / "videos")
+    # The pipeline's mechanics are under test here, not the lifter's accuracy: train briefly.
+    set_params(root, "train_lifter", steps=150, channels=64)
 
     first = _dvc(root, "repro")
     assert first.returncode == 0, first.stderr[-3000:]
@@ -55,6 +61,14 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
         assert (ids == 1).sum() >= 0.9 * seg["frames"], seg["segment_id"]  # one dancer, one long track
         assert (root / "data/qc" / f"{seg['segment_id']}.mp4").stat().st_size > 0
 
+    for seg in index:
+        motion = pq.read_table(root / "data/motion24" / f"{seg['segment_id']}.parquet")
+        times = motion.column("time").to_numpy()
+        assert motion.num_rows >= 0.9 * seg["frames"] / seg["fps"] * 24
+        assert np.allclose(times, motion.column("frame").to_numpy() / 24)
+    lifter = json.loads((root / "metrics/lifter.json").read_text())
+    assert lifter["val_mpjpe_mm"] > 0 and lifter["steps"] == 150
+
     second = _dvc(root, "repro")
     assert second.returncode == 0, second.stderr[-3000:]
     assert "didn't change, skipping" in second.stdout or "up to date" in second.stdout
@@ -67,7 +81,7 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     third = _dvc(root, "repro")
     assert third.returncode == 0, third.stderr[-3000:]
     ran = [line.split("'")[1] for line in third.stdout.splitlines() if line.startswith("Running stage")]
-    assert ran == ["clean"]
+    assert ran == ["clean", "lift", "smooth", "resample"]
     assert not pq.read_table(root / "data/clean/solo_dance_001.parquet").num_rows
     assert pq.read_table(root / "data/clean/solo_dance_000.parquet").num_rows == 270
 

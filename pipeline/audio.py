@@ -1,0 +1,113 @@
+"""Audio: EBU R128 loudness normalisation and music features on the motion's 24 fps clock.
+
+Alignment rule: features are computed from the audio resampled to 24 x 512 = 12288 Hz
+with a hop of 512 samples and centred frames, so feature frame k is centred at exactly
+k / 24 s on the segment clock, the same instant as motion frame k. There is no drift:
+the hop is an exact 1/24 s, not a rounded 44100/24.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import librosa
+import numpy as np
+
+from pipeline.errors import MediaError
+from pipeline.media import ffmpeg_exe
+from pipeline.storage import atomic_path
+
+FPS = 24
+HOP = 512
+FEATURE_SR = FPS * HOP  # 12288 Hz
+OUTPUT_SR = 44100
+
+
+@dataclass(frozen=True)
+class LoudnessOptions:
+    target_lufs: float = -23.0
+    true_peak: float = -2.0
+    loudness_range: float = 7.0
+
+
+def normalise_loudness(src: Path, out: Path, opts: LoudnessOptions, audio_stream: int | None = None) -> None:
+    """EBU R128 two-pass normalisation with ffmpeg-normalize to 44.1 kHz 16-bit WAV.
+
+    ``audio_stream`` selects the stream explicitly (files may carry cover art or several tracks).
+    """
+    from ffmpeg_normalize import FFmpegNormalize
+
+    os.environ["FFMPEG_PATH"] = ffmpeg_exe()  # ffmpeg-normalize finds the wheel's ffmpeg through this
+    with atomic_path(Path(out)) as tmp:
+        normaliser = FFmpegNormalize(
+            normalization_type="ebu", target_level=opts.target_lufs, true_peak=opts.true_peak,
+            loudness_range_target=opts.loudness_range, sample_rate=OUTPUT_SR, audio_codec="pcm_s16le",
+            video_disable=True, subtitle_disable=True, metadata_disable=True, chapters_disable=True,
+            audio_streams=[audio_stream] if audio_stream is not None else None, output_format="wav",
+            extension="wav", keep_bit_depth=False)
+        normaliser.add_media_file(str(src), str(tmp))
+        try:
+            normaliser.run_normalization()
+        except Exception as exc:  # ffmpeg-normalize raises its own error types
+            raise MediaError(src, f"loudness normalisation failed: {exc}") from None
+
+
+@dataclass
+class AudioFeatures:
+    frames: int
+    mfcc: np.ndarray       # frames x 39: MFCC-13, delta, delta-delta
+    chroma: np.ndarray     # frames x 12
+    onset: np.ndarray      # frames: onset strength
+    beat: np.ndarray       # frames: 1 where a beat falls in the frame, else 0
+    beat_times: np.ndarray  # seconds on the segment clock
+    tempo: float           # beats per minute
+    extra: dict            # optional feature sets, name -> frames x d
+
+
+def load_for_features(path: Path) -> np.ndarray:
+    y, _ = librosa.load(str(path), sr=FEATURE_SR, mono=True)
+    return y
+
+
+def compute_features(y: np.ndarray, extra_sets: tuple[str, ...] = ()) -> AudioFeatures:
+    """Features of mono audio at FEATURE_SR; frame k is centred at k / 24 s."""
+    if len(y) < HOP:
+        raise ValueError("audio shorter than one feature frame")
+    n_fft = 2048
+    mfcc = librosa.feature.mfcc(y=y, sr=FEATURE_SR, n_mfcc=13, n_fft=n_fft, hop_length=HOP)
+    width = min(9, mfcc.shape[1] - (1 - mfcc.shape[1] % 2))
+    if width >= 3:
+        delta = librosa.feature.delta(mfcc, width=width)
+        delta2 = librosa.feature.delta(mfcc, order=2, width=width)
+    else:
+        delta = delta2 = np.zeros_like(mfcc)
+    onset = librosa.onset.onset_strength(y=y, sr=FEATURE_SR, hop_length=HOP)
+    tempo, beat_frames = librosa.beat.beat_track(onset_envelope=onset, sr=FEATURE_SR, hop_length=HOP, units="frames")
+    chroma = librosa.feature.chroma_stft(y=y, sr=FEATURE_SR, n_fft=n_fft, hop_length=HOP)
+    frames = mfcc.shape[1]
+    beat = np.zeros(frames, np.int8)
+    beat[beat_frames[beat_frames < frames]] = 1
+    extra = {}
+    if "mel80" in extra_sets:  # Transflower-style: 80-band log-mel at the motion rate
+        mel = librosa.feature.melspectrogram(y=y, sr=FEATURE_SR, n_fft=n_fft, hop_length=HOP, n_mels=80)
+        extra["mel80"] = librosa.power_to_db(mel).T[:frames]
+    if "beat_mfcc40" in extra_sets:  # DanceNet3D-style: per-beat MFCC-40 + chroma, held over each beat
+        mfcc40 = librosa.feature.mfcc(y=y, sr=FEATURE_SR, n_mfcc=40, n_fft=n_fft, hop_length=HOP)
+        bounds = librosa.util.fix_frames(beat_frames, x_min=0, x_max=frames)
+        synced = librosa.util.sync(np.vstack([mfcc40, chroma]), bounds, aggregate=np.mean)
+        per_frame = np.zeros((frames, synced.shape[0]))
+        for i, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
+            per_frame[a:b] = synced[:, i]
+        extra["beat_mfcc40"] = per_frame
+    return AudioFeatures(
+        frames=frames,
+        mfcc=np.vstack([mfcc, delta, delta2]).T.astype(np.float32),
+        chroma=chroma.T.astype(np.float32),
+        onset=onset[:frames].astype(np.float32),
+        beat=beat,
+        beat_times=(beat_frames / FPS).astype(np.float64),
+        tempo=float(np.atleast_1d(tempo)[0]),
+        extra={k: v.astype(np.float32) for k, v in extra.items()},
+    )

@@ -1,0 +1,121 @@
+"""2D/3D training pairs from motion capture through random virtual cameras, with
+augmentations that mimic what a detector and a video do to keypoints.
+
+For a window of a mocap sequence: scale the body (bone-length / height variety),
+optionally mirror it, place a camera at a random distance, height, yaw and pitch looking
+at the dancer, project the COCO-17 keypoints into a random image size with a random
+focal length, then jitter joints, drop some (a dropped joint is carried over from the
+previous frame, as the lift stage's gap filling does) and swap a left/right pair for a
+few frames. The target is the H36M-17 pose in camera coordinates, root-relative, metres.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.lifting.geometry import look_at, normalise_screen, project, to_camera
+from pipeline.mocap.skeleton import COCO_FLIP, H36M_FLIP
+from pipeline.mocap.sources import MocapSequence
+
+IMAGE_SIZES = ((1280, 720), (720, 1280), (1920, 1080), (1080, 1920), (640, 480), (768, 576), (384, 496), (640, 360))
+LR_PAIRS = ((5, 6), (7, 8), (9, 10), (11, 12), (13, 14), (15, 16))
+
+
+@dataclass(frozen=True)
+class AugmentOptions:
+    distance: tuple[float, float] = (2.5, 9.0)     # camera to dancer, m
+    height: tuple[float, float] = (0.3, 2.5)       # camera height, m
+    pitch_target: tuple[float, float] = (0.6, 1.4)  # height of the look-at point, m
+    fill: tuple[float, float] = (0.35, 0.95)       # person height as a share of the image height
+    scale: tuple[float, float] = (0.85, 1.15)      # body scale (bone-length variety)
+    speed: tuple[float, float] = (0.75, 1.33)      # temporal speed change
+    mirror: float = 0.5                            # probability of a mirrored body
+    jitter: float = 0.012                          # joint noise, share of body height in the image (std)
+    drop: float = 0.03                             # probability a joint is missing in a frame
+    swap: float = 0.02                             # probability per window of a left/right pair swapped for a while
+
+
+def _window(seq: MocapSequence, length: int, speed: float, start: float) -> tuple[np.ndarray, np.ndarray]:
+    """``length`` frames from ``start`` (in source frames) stepping ``speed`` frames, linear interpolation."""
+    idx = start + np.arange(length) * speed
+    idx = np.clip(idx, 0, seq.frames - 1)
+    lo = np.floor(idx).astype(int)
+    hi = np.minimum(lo + 1, seq.frames - 1)
+    w = (idx - lo)[:, None, None]
+    return seq.coco[lo] * (1 - w) + seq.coco[hi] * w, seq.h36m[lo] * (1 - w) + seq.h36m[hi] * w
+
+
+def make_pair(seq: MocapSequence, length: int, rng: np.random.Generator, opts: AugmentOptions,
+              augment: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """One (2D input (length x 17 x 2), 3D target (length x 17 x 3)) pair."""
+    speed = rng.uniform(*opts.speed) if augment else 1.0
+    span = (length - 1) * speed
+    start = rng.uniform(0, max(0.0, seq.frames - 1 - span))
+    coco, h36m = _window(seq, length, speed, start)
+    centre = h36m[:, 0].mean(0)
+    scale = rng.uniform(*opts.scale) if augment else 1.0
+    coco = (coco - centre) * scale + centre
+    h36m = (h36m - centre) * scale + centre
+    if augment and rng.random() < opts.mirror:
+        flip = np.array([-1.0, 1.0, 1.0])
+        coco = ((coco - centre) * flip + centre)[:, list(COCO_FLIP)]
+        h36m = ((h36m - centre) * flip + centre)[:, list(H36M_FLIP)]
+    body = np.ptp(h36m[:, :, 1]) if np.ptp(h36m[:, :, 1]) > 0.3 else 1.6
+    for attempt in range(20):
+        width, height = IMAGE_SIZES[rng.integers(len(IMAGE_SIZES))]
+        yaw = rng.uniform(0, 2 * np.pi)
+        # A dancer who travels during the window must stay in front of the camera and in view:
+        # later attempts move the camera further away.
+        distance = rng.uniform(*opts.distance) * (1 + 0.25 * attempt)
+        cam_pos = centre + np.array([np.sin(yaw) * distance, 0.0, np.cos(yaw) * distance])
+        cam_pos[1] = rng.uniform(*opts.height)
+        target = np.array([centre[0], rng.uniform(*opts.pitch_target), centre[2]])
+        rotation = look_at(cam_pos, target)
+        coco_cam = to_camera(coco, rotation, cam_pos)
+        h36m_cam = to_camera(h36m, rotation, cam_pos)
+        focal = rng.uniform(*opts.fill) * height * distance / body
+        xy = project(coco_cam, focal, width, height)
+        inside = (xy > -0.25 * np.array([width, height])) & (xy < 1.25 * np.array([width, height]))
+        if coco_cam[..., 2].min() > 1.0 and inside.all():
+            break
+    if augment:
+        px_body = focal * body / distance
+        xy = xy + rng.normal(0, opts.jitter * px_body, xy.shape)
+        if rng.random() < opts.swap:
+            a, b = LR_PAIRS[rng.integers(len(LR_PAIRS))]
+            t0 = rng.integers(length)
+            t1 = min(length, t0 + rng.integers(1, 8))
+            xy[t0:t1, [a, b]] = xy[t0:t1, [b, a]]
+        dropped = rng.random(xy.shape[:2]) < opts.drop
+        for t in range(1, length):
+            xy[t, dropped[t]] = xy[t - 1, dropped[t]]
+    inputs = normalise_screen(xy, width, height).astype(np.float32)
+    targets = (h36m_cam - h36m_cam[:, :1]).astype(np.float32)
+    return inputs, targets
+
+
+class PairSampler:
+    """Random training windows, sequences drawn in proportion to their length."""
+
+    def __init__(self, sequences: list[MocapSequence], length: int, opts: AugmentOptions, seed: int) -> None:
+        self.sequences = [s for s in sequences if s.frames >= 2]
+        weights = np.array([s.frames for s in self.sequences], float)
+        self.p = weights / weights.sum()
+        self.length, self.opts = length, opts
+        self.rng = np.random.default_rng(seed)
+
+    def batch(self, size: int) -> tuple[np.ndarray, np.ndarray]:
+        picks = self.rng.choice(len(self.sequences), size=size, p=self.p)
+        pairs = [make_pair(self.sequences[i], self.length, self.rng, self.opts) for i in picks]
+        return np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs])
+
+
+def validation_set(sequences: list[MocapSequence], length: int, per_sequence: int, seed: int,
+                   opts: AugmentOptions) -> tuple[np.ndarray, np.ndarray]:
+    """A fixed set of held-out windows seen through fixed random cameras (no noise)."""
+    rng = np.random.default_rng(seed)
+    pairs = [make_pair(s, length, rng, opts, augment=False) for s in sequences if s.frames >= length
+             for _ in range(per_sequence)]
+    return np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs])

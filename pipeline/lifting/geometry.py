@@ -1,0 +1,57 @@
+"""Cameras, normalisation and error measures shared by training and inference (numpy only)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def normalise_screen(xy: np.ndarray, width: float, height: float) -> np.ndarray:
+    """VideoPose3D's normalisation: x in [0, w] -> [-1, 1], aspect ratio kept (X*2/w - (1, h/w))."""
+    return xy / width * 2 - np.array([1.0, height / width])
+
+
+def look_at(position: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """World-to-camera rotation (rows: camera x right, y down, z forward), world y up."""
+    forward = target - position
+    forward = forward / np.linalg.norm(forward)
+    right = np.cross(forward, [0.0, 1.0, 0.0])
+    right = right / np.linalg.norm(right)
+    down = np.cross(forward, right)
+    return np.stack([right, down, forward])
+
+
+def to_camera(points: np.ndarray, rotation: np.ndarray, position: np.ndarray) -> np.ndarray:
+    return (points - position) @ rotation.T
+
+
+def project(points_cam: np.ndarray, focal: float, width: float, height: float) -> np.ndarray:
+    """Pinhole projection to pixels (principal point at the image centre)."""
+    z = np.maximum(points_cam[..., 2:3], 1e-3)
+    return points_cam[..., :2] / z * focal + np.array([width / 2, height / 2])
+
+
+def mpjpe(pred: np.ndarray, target: np.ndarray) -> float:
+    """Mean per-joint position error (same units as the inputs)."""
+    return float(np.linalg.norm(pred - target, axis=-1).mean())
+
+
+def p_mpjpe(pred: np.ndarray, target: np.ndarray) -> float:
+    """MPJPE after a per-frame similarity (Procrustes) alignment of pred to target."""
+    p = pred.reshape(-1, *pred.shape[-2:])
+    t = target.reshape(-1, *target.shape[-2:])
+    mu_p, mu_t = p.mean(1, keepdims=True), t.mean(1, keepdims=True)
+    p0, t0 = p - mu_p, t - mu_t
+    norm_p = np.sqrt((p0 ** 2).sum((1, 2), keepdims=True))
+    norm_t = np.sqrt((t0 ** 2).sum((1, 2), keepdims=True))
+    p0, t0 = p0 / norm_p, t0 / norm_t
+    u, s, vt = np.linalg.svd(np.einsum("fji,fjk->fik", t0, p0))
+    v = vt.transpose(0, 2, 1)
+    r = v @ u.transpose(0, 2, 1)
+    # no reflections
+    det = np.sign(np.linalg.det(r))
+    v[:, :, -1] *= det[:, None]
+    s[:, -1] *= det
+    r = v @ u.transpose(0, 2, 1)
+    scale = s.sum(1)[:, None, None] * norm_t / norm_p
+    aligned = scale * ((p - mu_p) @ r) + mu_t
+    return float(np.linalg.norm(aligned - t, axis=-1).mean())

@@ -1,0 +1,68 @@
+"""Joint orders and the construction of COCO-17 keypoints (face points included) from a body."""
+
+from __future__ import annotations
+
+import numpy as np
+
+H36M17 = ("pelvis", "right_hip", "right_knee", "right_ankle", "left_hip", "left_knee", "left_ankle", "spine",
+          "thorax", "neck_nose", "head", "left_shoulder", "left_elbow", "left_wrist", "right_shoulder",
+          "right_elbow", "right_wrist")
+# Bones of the H36M skeleton (parent, child), used for bone-length checks and drawing.
+H36M_BONES = ((0, 1), (1, 2), (2, 3), (0, 4), (4, 5), (5, 6), (0, 7), (7, 8), (8, 9), (9, 10), (8, 11), (11, 12),
+              (12, 13), (8, 14), (14, 15), (15, 16))
+H36M_FLIP = (0, 4, 5, 6, 1, 2, 3, 7, 8, 9, 10, 14, 15, 16, 11, 12, 13)
+COCO_FLIP = (0, 2, 1, 4, 3, 6, 5, 8, 7, 10, 9, 12, 11, 14, 13, 16, 15)
+WORLD_UP = np.array([0.0, 1.0, 0.0])
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-9)
+
+
+def head_frame(h36m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-frame head axes (up, forward, left) from the body: up = thorax->head joint,
+    forward = horizontal facing from the hips ((left_hip - right_hip) x world up)."""
+    up = _unit(h36m[:, 9] - h36m[:, 8])
+    facing = np.cross(h36m[:, 4] - h36m[:, 1], WORLD_UP)
+    facing[:, 1] = 0.0
+    forward = _unit(facing - (facing * up).sum(-1, keepdims=True) * up)
+    left = np.cross(up, forward)
+    return up, forward, left
+
+
+def stature(h36m: np.ndarray) -> float:
+    """Standing height estimate (m): median head-joint-to-ankles distance x 1.08."""
+    ankles = (h36m[:, 3] + h36m[:, 6]) / 2
+    return float(np.median(np.linalg.norm(h36m[:, 9] - ankles, axis=-1)) * 1.08)
+
+
+def head_top(h36m: np.ndarray, height_share: float = 0.10) -> np.ndarray:
+    """Head top when the rig has none: head joint + share x stature along the head's up axis."""
+    up, _, _ = head_frame(h36m)
+    return h36m[:, 9] + height_share * stature(h36m) * up
+
+
+def coco_from_h36m(h36m: np.ndarray, hip_widening: float = 1.1) -> np.ndarray:
+    """COCO-17 keypoints (T x 17 x 3) from H36M-17 joints: body joints shared, hips a little
+    wider (COCO hips sit wider than joint centres), face placed from the head joint."""
+    up, forward, left = head_frame(h36m)
+    s = stature(h36m)
+    c = h36m[:, 9]
+    coco = np.zeros_like(h36m)
+    coco[:, 0] = c + 0.03 * s * up + 0.06 * s * forward
+    coco[:, 1] = c + 0.04 * s * up + 0.05 * s * forward + 0.019 * s * left
+    coco[:, 2] = c + 0.04 * s * up + 0.05 * s * forward - 0.019 * s * left
+    coco[:, 3] = c + 0.02 * s * up + 0.045 * s * left
+    coco[:, 4] = c + 0.02 * s * up - 0.045 * s * left
+    body = {5: 11, 6: 14, 7: 12, 8: 15, 9: 13, 10: 16, 13: 5, 14: 2, 15: 6, 16: 3}
+    for coco_i, h_i in body.items():
+        coco[:, coco_i] = h36m[:, h_i]
+    pelvis = h36m[:, 0]
+    coco[:, 11] = pelvis + hip_widening * (h36m[:, 4] - pelvis)
+    coco[:, 12] = pelvis + hip_widening * (h36m[:, 1] - pelvis)
+    return coco
+
+
+def bone_lengths(h36m: np.ndarray) -> np.ndarray:
+    """T x 16 bone lengths."""
+    return np.stack([np.linalg.norm(h36m[:, b] - h36m[:, a], axis=-1) for a, b in H36M_BONES], -1)

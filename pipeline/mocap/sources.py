@@ -1,0 +1,194 @@
+"""Loaders for each motion-capture source in shared/mocap (see its MOCAP.md), all into
+``MocapSequence``: H36M-17 and COCO-17 positions in metres, y up, right-handed.
+
+Each BVH source is described by a small table: its units, up axis, how position
+channels combine with offsets, and which joint (or midpoint, or End Site) gives each
+Human3.6M joint. A head top missing from the rig is placed along the head's up axis.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from pipeline.mocap.bvh import forward_kinematics, read_bvh
+from pipeline.mocap.skeleton import coco_from_h36m, head_frame, stature
+
+
+@dataclass
+class MocapSequence:
+    name: str            # "<source>/<file stem>"
+    source: str
+    fps: float
+    h36m: np.ndarray     # T x 17 x 3, metres
+    coco: np.ndarray     # T x 17 x 3, metres
+
+    @property
+    def frames(self) -> int:
+        return len(self.h36m)
+
+
+@dataclass(frozen=True)
+class BvhSource:
+    folder: str
+    unit: float               # metres per file unit
+    z_up: bool                # True: convert (x, y, z) -> (x, z, -y)
+    position_mode: str        # replace | add (see pipeline.mocap.bvh)
+    joints: tuple             # 17 specs: "Name", ("mid", a, b), ("end", "Name"), ("top", share_or_metres)
+
+
+def _body(pelvis, rhip, rknee, rankle, lhip, lknee, lankle, spine, thorax, head, top, lsh, lel, lwr, rsh, rel, rwr):
+    return (pelvis, rhip, rknee, rankle, lhip, lknee, lankle, spine, thorax, head, top, lsh, lel, lwr, rsh, rel, rwr)
+
+
+BVH_SOURCES = {
+    "bandai_namco_1": BvhSource("bandai_namco_1", 0.01, False, "replace", _body(
+        "Hips", "UpperLeg_R", "LowerLeg_R", "Foot_R", "UpperLeg_L", "LowerLeg_L", "Foot_L", "Chest", "Neck", "Head",
+        ("top", 0.10), "UpperArm_L", "LowerArm_L", "Hand_L", "UpperArm_R", "LowerArm_R", "Hand_R")),
+    "cmu_subject05_iclone": BvhSource("cmu_subject05_iclone", 0.01, False, "add", _body(
+        "CC_Base_Hip", "CC_Base_R_Thigh", "CC_Base_R_Calf", "CC_Base_R_Foot", "CC_Base_L_Thigh", "CC_Base_L_Calf",
+        "CC_Base_L_Foot", "CC_Base_Spine02", "CC_Base_NeckTwist01", "CC_Base_Head", ("top_m", 0.12),
+        "CC_Base_L_Upperarm", "CC_Base_L_Forearm", "CC_Base_L_Hand", "CC_Base_R_Upperarm", "CC_Base_R_Forearm",
+        "CC_Base_R_Hand")),
+    "perfume": BvhSource("perfume", 0.01, False, "replace", _body(
+        "Hips", "RightHip", "RightKnee", "RightAnkle", "LeftHip", "LeftKnee", "LeftAnkle", "Chest3", "Neck", "Head",
+        ("end", "Head"), "LeftShoulder", "LeftElbow", "LeftWrist", "RightShoulder", "RightElbow", "RightWrist")),
+    "dancedb_ucy": BvhSource("dancedb_ucy", 0.01, False, "replace", _body(
+        "Hips", "RightUpLeg", "RightLeg", "RightFoot", "LeftUpLeg", "LeftLeg", "LeftFoot", "Spine2", "Neck", "Head",
+        ("top", 0.10), "LeftArm", "LeftForeArm", "LeftHand", "RightArm", "RightForeArm", "RightHand")),
+    "animated_drawings_fair": BvhSource("animated_drawings_fair", 0.0254, True, "replace", _body(
+        "Hips", "RightUpLeg", "RightLeg", "RightFoot", "LeftUpLeg", "LeftLeg", "LeftFoot", "Spine2", "Neck", "Head",
+        ("end", "Head"), "LeftArm", "LeftForeArm", "LeftHand", "RightArm", "RightForeArm", "RightHand")),
+}
+BVH_SOURCES["bandai_namco_2_subset"] = BvhSource("bandai_namco_2_subset", *list(
+    vars(BVH_SOURCES["bandai_namco_1"]).values())[1:])
+SOURCES = (*BVH_SOURCES, "deepmimic", "tang2018_ballroom")
+
+
+def _to_canonical(points: np.ndarray, unit: float, z_up: bool) -> np.ndarray:
+    points = points * unit
+    if z_up:
+        points = np.stack([points[..., 0], points[..., 2], -points[..., 1]], -1)
+    return points
+
+
+def load_bvh_sequence(path: Path, source: BvhSource) -> MocapSequence:
+    bvh = read_bvh(path)
+    positions, _, ends = forward_kinematics(bvh, source.position_mode)
+    positions = _to_canonical(positions, source.unit, source.z_up)
+    ends = _to_canonical(ends, source.unit, source.z_up)
+    h36m = np.zeros((len(positions), 17, 3))
+    tops: list[tuple[int, tuple]] = []
+    for k, spec in enumerate(source.joints):
+        if isinstance(spec, str):
+            h36m[:, k] = positions[:, bvh.index(spec)]
+        elif spec[0] == "mid":
+            h36m[:, k] = (positions[:, bvh.index(spec[1])] + positions[:, bvh.index(spec[2])]) / 2
+        elif spec[0] == "end":
+            h36m[:, k] = ends[:, bvh.index(spec[1])]
+        else:
+            tops.append((k, spec))
+    for k, (kind, amount) in tops:  # needs the rest of the body first
+        up, _, _ = head_frame(h36m)
+        length = amount * stature(h36m) if kind == "top" else amount
+        h36m[:, k] = h36m[:, 9] + length * up
+    return MocapSequence(f"{source.folder}/{path.stem}", source.folder, 1.0 / bvh.frame_time, h36m,
+                         coco_from_h36m(h36m))
+
+
+# DeepMimic humanoid3d: offsets (m) in the parent frame; +z is the character's right side.
+_DM = {"chest": (0, 0.236, 0), "neck": (0, 0.224, 0), "r_hip": (0, 0, 0.085), "l_hip": (0, 0, -0.085),
+       "knee": (0, -0.422, 0), "ankle": (0, -0.410, 0), "r_shoulder": (-0.024, 0.244, 0.183),
+       "l_shoulder": (-0.024, 0.244, -0.183), "elbow": (0, -0.275, 0), "wrist": (0, -0.259, 0),
+       "head": (0, 0.175, 0), "head_top": (0, 0.2775, 0)}
+
+
+def _quat(wxyz: np.ndarray) -> Rotation:
+    return Rotation.from_quat(wxyz[:, [1, 2, 3, 0]])
+
+
+def load_deepmimic(path: Path) -> MocapSequence:
+    frames = np.array(json.loads(Path(path).read_text())["Frames"], dtype=np.float64)
+    dt = frames[0, 0] if frames[0, 0] > 0 else 1 / 60
+    cols = iter(range(1, 44))
+
+    def take(n: int) -> np.ndarray:
+        return frames[:, [next(cols) for _ in range(n)]]
+
+    root_pos, root_q = take(3), _quat(take(4))
+    chest_q, neck_q = _quat(take(4)), _quat(take(4))
+    # Ankle rotations only turn the feet, which H36M-17 does not have: read past them.
+    r_hip_q, r_knee, _, r_sh_q, r_elbow = _quat(take(4)), take(1), take(4), _quat(take(4)), take(1)
+    l_hip_q, l_knee, _, l_sh_q, l_elbow = _quat(take(4)), take(1), take(4), _quat(take(4)), take(1)
+
+    def revolute(angle: np.ndarray) -> Rotation:
+        return Rotation.from_rotvec(np.column_stack([np.zeros(len(angle)), np.zeros(len(angle)), angle[:, 0]]))
+
+    def at(parent_pos, parent_rot: Rotation, offset) -> np.ndarray:
+        return parent_pos + parent_rot.apply(np.asarray(offset, float))
+
+    chest_r = root_q * chest_q
+    neck_pos = at(at(root_pos, root_q, _DM["chest"]), chest_r, _DM["neck"])
+    neck_r = chest_r * neck_q
+    legs, arms = {}, {}
+    sides = (("r", r_hip_q, r_knee, r_sh_q, r_elbow), ("l", l_hip_q, l_knee, l_sh_q, l_elbow))
+    for side, hip_q, knee, sh_q, elbow in sides:
+        hip = at(root_pos, root_q, _DM[f"{side}_hip"])
+        hip_r = root_q * hip_q
+        knee_pos = at(hip, hip_r, _DM["knee"])
+        ankle = at(knee_pos, hip_r * revolute(knee), _DM["ankle"])
+        legs[side] = (hip, knee_pos, ankle)
+        shoulder = at(at(root_pos, root_q, _DM["chest"]), chest_r, _DM[f"{side}_shoulder"])
+        sh_r = chest_r * sh_q
+        elbow_pos = at(shoulder, sh_r, _DM["elbow"])
+        wrist = at(elbow_pos, sh_r * revolute(elbow), _DM["wrist"])
+        arms[side] = (shoulder, elbow_pos, wrist)
+    h36m = np.stack([root_pos, *legs["r"], *legs["l"], (root_pos + neck_pos) / 2, neck_pos,
+                     at(neck_pos, neck_r, _DM["head"]), at(neck_pos, neck_r, _DM["head_top"]),
+                     *arms["l"], *arms["r"]], axis=1)
+    return MocapSequence(f"deepmimic/{Path(path).stem}", "deepmimic", 1.0 / dt, h36m, coco_from_h36m(h36m))
+
+
+def load_tang(path: Path) -> MocapSequence:
+    data = np.load(path)
+    points = (data["skeletons"] + data["center"][:, None]).astype(np.float64) * 0.01
+    points[..., 2] *= -1  # the dataset is left-handed (Unity)
+    head = (points[:, 0] + points[:, 1]) / 2
+    thorax = (points[:, 3] + points[:, 12]) / 2
+    h36m = np.stack([points[:, 2], points[:, 16], points[:, 17], points[:, 18], points[:, 7], points[:, 8],
+                     points[:, 9], (points[:, 2] + thorax) / 2, thorax, head, head + 0.5 * (head - thorax),
+                     points[:, 3], points[:, 4], points[:, 6], points[:, 12], points[:, 13], points[:, 15]], axis=1)
+    return MocapSequence(f"tang2018_ballroom/{Path(path).stem}", "tang2018_ballroom", float(data["fps_nominal"]),
+                         h36m, coco_from_h36m(h36m))
+
+
+def load_source(root: Path, source: str, include_waltz: bool = False) -> list[MocapSequence]:
+    """Every sequence of one source folder under ``root`` (the mocap folder)."""
+    folder = Path(root) / source
+    if source in BVH_SOURCES:
+        return [load_bvh_sequence(p, BVH_SOURCES[source]) for p in sorted(folder.glob("*.bvh"))]
+    if source == "deepmimic":
+        return [load_deepmimic(p) for p in sorted(folder.glob("humanoid3d_*.txt")) if "character" not in p.name]
+    if source == "tang2018_ballroom":
+        # Waltz files are temporally subsampled (about 6 fps effective): left out unless asked for.
+        return [load_tang(p) for p in sorted(folder.glob("*.npz")) if include_waltz or "_W_" not in p.name]
+    raise ValueError(f"unknown mocap source {source!r}; known: {', '.join(SOURCES)}")
+
+
+def resample(seq: MocapSequence, fps: float) -> MocapSequence:
+    """Linear resampling to ``fps`` (mocap rates are 16-120 Hz; the lifter sees video rates)."""
+    if abs(seq.fps - fps) < 1e-6:
+        return seq
+    t_src = np.arange(seq.frames) / seq.fps
+    t_new = np.arange(0, t_src[-1] + 1e-9, 1 / fps)
+
+    def interp(x: np.ndarray) -> np.ndarray:
+        flat = x.reshape(len(x), -1)
+        return np.stack([np.interp(t_new, t_src, flat[:, c]) for c in range(flat.shape[1])], -1).reshape(
+            (len(t_new),) + x.shape[1:])
+
+    return MocapSequence(seq.name, seq.source, fps, interp(seq.h36m), interp(seq.coco))

@@ -1,0 +1,30 @@
+"""Quality measures of 3D motion clips, for metrics and for spotting bad clips."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.mocap.skeleton import H36M_BONES
+
+LIMBS = [H36M_BONES.index(b) for b in ((1, 2), (2, 3), (4, 5), (5, 6), (11, 12), (12, 13), (14, 15), (15, 16))]
+
+
+def mean_acceleration(joints: np.ndarray, fps: float) -> float:
+    """Mean joint acceleration magnitude (m/s^2): jitter shows up here first."""
+    if len(joints) < 3:
+        return 0.0
+    acc = np.diff(joints, n=2, axis=0) * fps * fps
+    return float(np.linalg.norm(acc, axis=-1).mean())
+
+
+def limb_length_cv(joints: np.ndarray) -> float:
+    """Mean coefficient of variation of the limb bones over the clip (0 for a rigid skeleton)."""
+    lengths = np.stack([np.linalg.norm(joints[:, H36M_BONES[i][1]] - joints[:, H36M_BONES[i][0]], axis=-1)
+                        for i in LIMBS], -1)
+    return float((lengths.std(0) / np.maximum(lengths.mean(0), 1e-9)).mean())
+
+
+def limb_lengths(joints: np.ndarray) -> np.ndarray:
+    """Median length of each limb bone (thigh, shin, upper arm, forearm; right and left)."""
+    return np.array([np.median(np.linalg.norm(joints[:, H36M_BONES[i][1]] - joints[:, H36M_BONES[i][0]], axis=-1))
+                     for i in LIMBS])

@@ -1,0 +1,155 @@
+"""The VideoPose3D-style lifter: architecture, official-checkpoint conversion, training, inference."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import onnxruntime as ort
+import pytest
+import torch
+
+from pipeline.errors import InputError
+from pipeline.lifting.convert import convert_videopose3d, infer_architecture
+from pipeline.lifting.geometry import p_mpjpe
+from pipeline.lifting.infer import Lifter, fill_low_confidence
+from pipeline.lifting.model import TemporalModel
+from pipeline.lifting.train import LifterConfig, export_onnx, load_mocap, split, train_lifter
+from pipeline.mocap.skeleton import bone_lengths
+from pipeline.motion_qc import LIMBS
+
+
+def test_official_coco_architecture_has_the_documented_size() -> None:
+    model = TemporalModel(17, 17, (3, 3, 3, 3, 3), 1024)
+    assert model.receptive_field == 243
+    assert sum(p.numel() for p in model.parameters()) == 16_952_371  # MODELS.md §4
+    assert model.pad == [1, 3, 9, 27, 81]
+    out = model.eval()(torch.zeros(2, 250, 17, 2))
+    assert out.shape == (2, 250 - 242, 17, 3)
+
+
+def _official_checkpoint(path: Path, filter_widths=(3, 3, 3, 3, 3), channels: int = 1024) -> Path:
+    torch.manual_seed(1)
+    model = TemporalModel(17, 17, filter_widths, channels)
+    with torch.no_grad():  # non-trivial BatchNorm statistics, as a trained checkpoint has
+        for name, buffer in model.named_buffers():
+            if name.endswith("running_mean"):
+                buffer.normal_(0, 0.1)
+            elif name.endswith("running_var"):
+                buffer.uniform_(0.5, 1.5)
+    torch.save({"epoch": 80, "lr": 1e-5, "model_pos": model.state_dict(), "optimizer": {}}, path)
+    return path
+
+
+def test_converter_round_trip_matches_torch(tmp_path: Path) -> None:
+    checkpoint = _official_checkpoint(tmp_path / "pretrained_h36m_detectron_coco.bin")
+    model = convert_videopose3d(checkpoint, tmp_path / "lifter.onnx")
+    session = ort.InferenceSession(str(tmp_path / "lifter.onnx"))
+    assert session.get_modelmeta().custom_metadata_map["receptive_field"] == "243"
+    x = np.random.default_rng(0).normal(0, 0.5, (1, 260, 17, 2)).astype(np.float32)
+    (onnx_out,) = session.run(None, {"keypoints2d": x})
+    with torch.no_grad():
+        torch_out = model(torch.from_numpy(x)).numpy()
+    assert onnx_out.shape == (1, 18, 17, 3)
+    assert np.abs(onnx_out - torch_out).max() < 1e-4
+
+
+def test_converter_rejects_a_wrong_layout_with_the_reason(tmp_path: Path) -> None:
+    state = TemporalModel(17, 17, (3, 3, 3), 64).state_dict()
+    del state["layers_bn.1.running_var"]
+    state["shrink.bias"] = torch.zeros(50)
+    torch.save({"model_pos": state}, tmp_path / "bad.bin")
+    with pytest.raises(InputError) as err:
+        convert_videopose3d(tmp_path / "bad.bin", tmp_path / "out.onnx")
+    message = str(err.value)
+    assert message.startswith(f"{tmp_path / 'bad.bin'}: wrong checkpoint layout: missing layers_bn.1.running_var")
+    assert "wrong shape shrink.bias (50,) (expected (51,))" in message
+    assert not (tmp_path / "out.onnx").exists()
+
+
+def test_converter_rejects_files_that_are_not_checkpoints(tmp_path: Path) -> None:
+    torch.save({"state_dict": {}}, tmp_path / "other.bin")
+    with pytest.raises(InputError, match=r"other\.bin: not a VideoPose3D checkpoint: no 'model_pos' entry"):
+        convert_videopose3d(tmp_path / "other.bin", tmp_path / "out.onnx")
+    (tmp_path / "junk.bin").write_bytes(b"junk")
+    with pytest.raises(InputError, match=r"junk\.bin: cannot read the checkpoint"):
+        convert_videopose3d(tmp_path / "junk.bin", tmp_path / "out.onnx")
+    with pytest.raises(ValueError, match="missing 'expand_conv.weight'"):
+        infer_architecture({"shrink.weight": torch.zeros(51, 8, 1)})
+
+
+def test_p_mpjpe_ignores_rotation_scale_and_translation() -> None:
+    rng = np.random.default_rng(0)
+    target = rng.normal(size=(5, 17, 3))
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    q *= np.sign(np.linalg.det(q))
+    pred = 1.7 * target @ q + np.array([0.3, -2.0, 5.0])
+    assert p_mpjpe(pred, target) < 1e-9
+
+
+def test_low_confidence_joints_are_interpolated_over_time() -> None:
+    kps = np.zeros((5, 17, 3))
+    kps[:, :, 0] = np.arange(5)[:, None] * 10.0
+    kps[:, :, 2] = 0.9
+    kps[2, 3] = [999.0, 999.0, 0.05]
+    filled, mask = fill_low_confidence(kps, 0.3)
+    assert filled[2, 3, 0] == pytest.approx(20.0) and filled[2, 3, 1] == pytest.approx(0.0)
+    assert mask.sum() == 1 and mask[2, 3]
+
+
+@pytest.fixture(scope="module")
+def tiny_lifter(mocap_dir: Path, tmp_path_factory) -> tuple:
+    cfg = LifterConfig(steps=700, channels=128, sources=("bandai_namco_1", "perfume", "dancedb_ucy",
+                                                         "cmu_subject05_iclone"))
+    train, val = split(load_mocap(mocap_dir, cfg), cfg.holdout)
+    result = train_lifter(cfg, train, val)
+    path = tmp_path_factory.mktemp("lifter") / "lifter.onnx"
+    export_onnx(result.model, path)
+    return result, path
+
+
+def test_trained_lifter_beats_the_mean_pose_on_held_out_mocap(tiny_lifter: tuple) -> None:
+    result, _ = tiny_lifter
+    metrics = result.metrics
+    assert metrics["val_sequences"] >= 4
+    assert metrics["val_mpjpe_mm"] < 0.8 * metrics["mean_pose_mpjpe_mm"], metrics
+    assert metrics["val_p_mpjpe_mm"] < metrics["val_mpjpe_mm"]
+    assert np.mean(result.losses[-50:]) < 0.5 * np.mean(result.losses[:50])
+
+
+def test_lifting_the_dance_clip_gives_plausible_skeletons(tiny_lifter: tuple, dance_clip: Path,
+                                                          models_dir: Path) -> None:
+    from pipeline.models.detector import RTMDetDetector
+    from pipeline.models.pose import MoveNetPose
+    from pipeline.models.session import create_session
+    from pipeline.pose2d import Pose2dOptions, estimate_segment
+
+    _, path = tiny_lifter
+    det = RTMDetDetector(create_session(models_dir / "rtmdet_nano_person_end2end.onnx"))
+    pose = MoveNetPose(create_session(models_dir / "movenet_singlepose_lightning_4_dequant.onnx"))
+    kps = np.stack([fp.keypoints[0] for fp in estimate_segment(dance_clip, 24.0, det, pose, Pose2dOptions())
+                    if len(fp.scores)])
+    filled, _ = fill_low_confidence(kps, 0.3)
+    lifter = Lifter(ort.InferenceSession(str(path)))
+    (joints,) = lifter.lift([filled], 1080, 1920, flip=True)
+    assert joints.shape == (len(kps), 17, 3) and np.isfinite(joints).all()
+    assert np.abs(joints[:, 0]).max() < 1e-3  # root-relative
+    # Right thigh, shin, left thigh, shin, then left upper arm, forearm, right upper arm, forearm.
+    limbs = np.median(bone_lengths(joints)[:, LIMBS], 0)
+    assert np.all((limbs[:4] > 0.25) & (limbs[:4] < 0.6)), limbs  # legs of a human size (m)
+    assert np.all((limbs[4:] > 0.1) & (limbs[4:] < 0.45)), limbs  # arms (a tiny model shortens forearms)
+    assert 0.6 < limbs[0] / limbs[2] < 1.6 and 0.6 < limbs[4] / limbs[6] < 1.6  # left and right agree
+    # Camera frame, y down: the head is above the pelvis and the ankles below it.
+    assert (joints[:, 10, 1] < joints[:, 0, 1]).mean() > 0.95
+    assert (joints[:, 3, 1] > joints[:, 0, 1]).mean() > 0.95
+
+
+def test_clips_lifted_together_equal_clips_lifted_alone(tiny_lifter: tuple) -> None:
+    _, path = tiny_lifter
+    lifter = Lifter(ort.InferenceSession(str(path)))
+    rng = np.random.default_rng(0)
+    a, b = rng.uniform(100, 600, (40, 17, 2)), rng.uniform(100, 600, (9, 17, 2))
+    together = lifter.lift([a, b], 640, 720)
+    alone = lifter.lift([a], 640, 720) + lifter.lift([b], 640, 720)
+    for x, y in zip(together, alone):
+        assert np.abs(x - y).max() < 1e-5
