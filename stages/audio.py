@@ -34,7 +34,8 @@ def _fixed(values: np.ndarray) -> pa.Array:
 def features_table(f) -> pa.Table:
     frame = np.arange(f.frames, dtype=np.int32)
     columns = {"frame": pa.array(frame), "time": pa.array(frame / FPS, pa.float64()), "mfcc": _fixed(f.mfcc),
-               "chroma": _fixed(f.chroma), "onset": pa.array(f.onset, pa.float32()), "beat": pa.array(f.beat, pa.int8())}
+               "chroma": _fixed(f.chroma), "onset": pa.array(f.onset, pa.float32()),
+               "beat": pa.array(f.beat, pa.int8())}
     for name, values in sorted(f.extra.items()):
         columns[name] = _fixed(values)
     return pa.table(columns)

@@ -44,6 +44,7 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     (root / "demo/media").symlink_to(media_dir / "videos")
     # The pipeline's mechanics are under test here, not the lifter's accuracy: train briefly.
     set_params(root, "train_lifter", steps=150, channels=64)
+    set_params(root, "train", steps=40)
 
     first = _dvc(root, "repro")
     assert first.returncode == 0, first.stderr[-3000:]
@@ -69,6 +70,20 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     lifter = json.loads((root / "metrics/lifter.json").read_text())
     assert lifter["val_mpjpe_mm"] > 0 and lifter["steps"] == 150
 
+    shards = sorted((root / "data/corpus/train").glob("shard-*.parquet")) + sorted(
+        (root / "data/corpus/val").glob("shard-*.parquet"))
+    windows = sum(pq.read_metadata(p).num_rows for p in shards)
+    corpus = json.loads((root / "metrics/corpus.json").read_text())
+    assert windows == corpus["windows_train"] + corpus["windows_val"] > 0
+    assert corpus["clips_without_audio"] == 2  # the silent solo clip's two segments
+    assert "## Statistics" in (root / "data/corpus/card.md").read_text()
+    assert (root / "models/tsmt.pt").exists() and json.loads((root / "metrics/train.json").read_text())["steps"] == 40
+    metrics = _dvc(root, "metrics", "show")
+    assert metrics.returncode == 0 and "val_mpjpe_mm" in metrics.stdout and "windows_train" in metrics.stdout
+    plots = _dvc(root, "plots", "show", "-o", str(tmp_path / "plots"))
+    assert plots.returncode == 0, plots.stderr[-2000:]
+    assert (tmp_path / "plots/index.html").exists()
+
     second = _dvc(root, "repro")
     assert second.returncode == 0, second.stderr[-3000:]
     assert "didn't change, skipping" in second.stdout or "up to date" in second.stdout
@@ -81,7 +96,7 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     third = _dvc(root, "repro")
     assert third.returncode == 0, third.stderr[-3000:]
     ran = [line.split("'")[1] for line in third.stdout.splitlines() if line.startswith("Running stage")]
-    assert ran == ["clean", "lift", "smooth", "resample"]
+    assert ran == ["clean", "lift", "smooth", "resample", "shard", "train"]
     assert not pq.read_table(root / "data/clean/solo_dance_001.parquet").num_rows
     assert pq.read_table(root / "data/clean/solo_dance_000.parquet").num_rows == 270
 

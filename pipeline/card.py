@@ -1,0 +1,144 @@
+"""The dataset card (data/corpus/card.md), its statistics table and duration histograms."""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.mocap.skeleton import H36M17
+from pipeline.storage import atomic_path
+
+
+def channel_stats(ledger: list[dict], segments: list[dict], track_ids: dict[str, int], clip_minutes: dict[str, float],
+                  windows: list[dict]) -> list[dict]:
+    """Rows like the seed paper's Table 2, one per channel plus a total.
+
+    track_ids: video_id -> number of real track ids over its segments;
+    clip_minutes: video_id -> minutes of cleaned clips.
+    """
+    channel_of = {r["video_id"]: r["channel"] or "(unknown)" for r in ledger if r["status"] == "ok"}
+    rows: dict[str, dict] = defaultdict(lambda: defaultdict(float))
+    for r in ledger:
+        if r["status"] == "ok":
+            row = rows[channel_of[r["video_id"]]]
+            row["videos"] += 1
+            row["minutes"] += r["duration"] / 60
+            row["track_ids"] += track_ids.get(r["video_id"], 0)
+            row["track_minutes"] += clip_minutes.get(r["video_id"], 0.0)
+    for s in segments:
+        row = rows[channel_of.get(s["video_id"], "(unknown)")]
+        row["segments"] += 1
+        row["segment_minutes"] += s["frames"] / s["fps"] / 60
+    for w in windows:
+        rows[channel_of.get(w["video_id"], "(unknown)")][f"windows_{w['split']}"] += 1
+    table = []
+    for channel in sorted(rows):
+        r = rows[channel]
+        table.append({"channel": channel, "videos": int(r["videos"]), "minutes": round(r["minutes"], 2),
+                      "segments": int(r["segments"]), "segment_minutes": round(r["segment_minutes"], 2),
+                      "track_ids_per_video": round(r["track_ids"] / r["videos"], 2) if r["videos"] else 0.0,
+                      "track_minutes": round(r["track_minutes"], 2), "windows_train": int(r["windows_train"]),
+                      "windows_val": int(r["windows_val"])})
+    total = {"channel": "total"}
+    for key in table[0] if table else []:
+        if key != "channel":
+            total[key] = round(sum(t[key] for t in table), 2)
+    if table:
+        videos = sum(t["videos"] for t in table)
+        total["track_ids_per_video"] = round(sum(t["track_ids_per_video"] * t["videos"] for t in table) / videos, 2) \
+            if videos else 0.0
+    return table + ([total] if table else [])
+
+
+def histogram_png(path: Path, series: dict[str, list[float]]) -> None:
+    """Duration histograms (seconds), one panel per series."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(series), figsize=(4 * len(series), 3), squeeze=False)
+    for ax, (name, values) in zip(axes[0], series.items()):
+        ax.hist(values or [0], bins=20, color="#4477aa")
+        ax.set_title(name)
+        ax.set_xlabel("seconds")
+        ax.set_ylabel("count")
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=90, metadata={"Software": None})
+    plt.close(fig)
+
+
+def durations_csv(path: Path, series: dict[str, list[float]], bin_seconds: float = 5.0) -> None:
+    """Histogram counts per 5 s bin, one column per series, for `dvc plots`."""
+    top = max([max(v) for v in series.values() if v] or [bin_seconds])
+    edges = np.arange(0, top + bin_seconds, bin_seconds)
+    counts = {name: np.histogram(values, bins=edges)[0] if values else np.zeros(len(edges) - 1, int)
+              for name, values in series.items()}
+    lines = ["seconds," + ",".join(series)]
+    for i, start in enumerate(edges[:-1]):
+        lines.append(f"{start:g}," + ",".join(str(int(counts[n][i])) for n in series))
+    with atomic_path(path) as tmp:
+        tmp.write_text("\n".join(lines) + "\n")
+
+
+def render_card(stats: list[dict], ledger: list[dict], params: dict, totals: dict) -> str:
+    window, hop = params["window_seconds"], params["hop_seconds"]
+    header = ("| channel | videos | minutes | trimmed segments | trimmed minutes | track ids / video | "
+              "track minutes | windows train | windows val |\n|---|---|---|---|---|---|---|---|---|\n")
+    table = "".join(f"| {r['channel']} | {r['videos']} | {r['minutes']} | {r['segments']} | {r['segment_minutes']} | "
+                    f"{r['track_ids_per_video']} | {r['track_minutes']} | {r['windows_train']} | {r['windows_val']} |\n"
+                    for r in stats)
+    sources = "".join(f"| {r['video_id']} | {r['title'] or '-'} | {r['channel'] or '-'} | {r['licence'] or '-'} | "
+                      f"{r['url']} |\n" for r in ledger if r["status"] == "ok")
+    joints = ", ".join(f"{i} {n}" for i, n in enumerate(H36M17))
+    return f"""# dance3d corpus
+
+3D dance motion synchronised with music features, cut into {window} s windows every {hop} s,
+made by dance3d from the videos listed below. {totals['windows_train']} training and
+{totals['windows_val']} validation windows ({totals['window_minutes']:.1f} minutes of distinct motion).
+
+## Files
+
+`train/shard-NNNNN.parquet` and `val/shard-NNNNN.parquet`, zstd-compressed, one row per
+window. Any Parquet reader works (pyarrow, pandas, Hugging Face `datasets`); the thin
+PyTorch loader is `pipeline.train.dataset.WindowDataset`. Each file's key-value metadata
+(`dance3d`) holds the schema version and the parameters that made it.
+
+| column | type | meaning |
+|---|---|---|
+| window_id | string | `<clip_id>_w<start_frame>` |
+| split | string | train or val (by video: a hash of video_id, so no video is in both) |
+| video_id, url, title, channel, style, licence | string | provenance of the source video |
+| segment_id, clip_id, track_id | string, string, int32 | the trimmed segment, the cleaned clip (one dancer), its track |
+| start_frame, start_time | int32, float64 | first frame k of the window and k/24 s, on the segment clock |
+| segment_start | float64 | where the segment starts in the source video (s) |
+| motion | {window * 24} x 17 x 3 float32 | Human3.6M-17 joints, metres, root-relative, camera frame (x right, y down, z away) |
+| mfcc | {window * 24} x 39 float32 | MFCC-13, deltas, delta-deltas |
+| chroma | {window * 24} x 12 float32 | chroma (STFT) |
+| onset | {window * 24} float32 | onset strength |
+| beat | {window * 24} int8 | 1 on frames holding a beat (librosa beat tracker) |
+| tempo | float32 | estimated tempo of the segment (BPM) |
+
+Joint order: {joints}.
+
+Frame rate and alignment: exactly 24 fps. Motion frame k and audio feature frame k of a
+window are both centred at k/24 s on the segment clock (audio resampled to 12288 Hz,
+hop 512, centred frames), so there is no drift. Motion was lifted from 2D keypoints by a
+VideoPose3D-style model, smoothed with a Hodrick-Prescott filter (lambda from params) and
+resampled with a cubic spline. Audio was loudness-normalised to EBU R128 before features.
+
+## Statistics
+
+{header}{table}
+![durations](durations.png)
+
+## Sources, licences and attribution
+
+Every window names its source. Respect each source's licence; the corpus inherits them.
+
+| video_id | title | channel | licence | url |
+|---|---|---|---|---|
+{sources}"""

@@ -1,0 +1,90 @@
+"""The corpus: 24 fps motion clips joined with their music features, cut into overlapping
+windows, split by video, written as Parquet shards.
+
+A window of ``W`` frames starting at frame k holds motion frames k .. k+W-1 of one clip
+and the audio feature frames with the same numbers: both are centred at k/24 s on the
+segment clock. Windows start every ``H`` frames from the clip's first frame; a clip
+shorter than one window gives none. The train/val split is by video (a hash of its id),
+so the overlapping windows of one video never straddle the split.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+
+import numpy as np
+import pyarrow as pa
+
+SCHEMA_VERSION = 1
+FPS = 24
+MFCC_DIMS = 39
+CHROMA_DIMS = 12
+
+
+def window_starts(first_frame: int, n_frames: int, window: int, hop: int) -> list[int]:
+    """Start frames of the windows of a clip (every ``hop`` frames, each fully inside the clip)."""
+    return [first_frame + s for s in range(0, n_frames - window + 1, hop)] if n_frames >= window else []
+
+
+def split_of(video_id: str, val_fraction: float) -> str:
+    """'val' or 'train', fixed by a hash of the video id (stable across runs and machines)."""
+    value = int.from_bytes(hashlib.sha256(video_id.encode()).digest()[:8], "big") / 2 ** 64
+    return "val" if value < val_fraction else "train"
+
+
+def corpus_schema(window: int) -> pa.Schema:
+    def fixed(inner: pa.DataType, size: int) -> pa.DataType:
+        return pa.list_(inner, size)
+
+    return pa.schema([
+        ("window_id", pa.string()), ("split", pa.string()),
+        ("video_id", pa.string()), ("url", pa.string()), ("title", pa.string()), ("channel", pa.string()),
+        ("style", pa.string()), ("licence", pa.string()),
+        ("segment_id", pa.string()), ("clip_id", pa.string()), ("track_id", pa.int32()),
+        ("start_frame", pa.int32()), ("start_time", pa.float64()), ("segment_start", pa.float64()),
+        ("motion", fixed(fixed(fixed(pa.float32(), 3), 17), window)),
+        ("mfcc", fixed(fixed(pa.float32(), MFCC_DIMS), window)),
+        ("chroma", fixed(fixed(pa.float32(), CHROMA_DIMS), window)),
+        ("onset", fixed(pa.float32(), window)),
+        ("beat", fixed(pa.int8(), window)),
+        ("tempo", pa.float32()),
+    ])
+
+
+@dataclass
+class Window:
+    meta: dict            # the scalar columns
+    motion: np.ndarray    # W x 17 x 3
+    mfcc: np.ndarray      # W x 39
+    chroma: np.ndarray    # W x 12
+    onset: np.ndarray     # W
+    beat: np.ndarray      # W
+
+
+def _nested(values: np.ndarray, dtype: pa.DataType, shape: tuple[int, ...]) -> pa.Array:
+    arr = pa.array(values.ravel(), dtype)
+    for size in reversed(shape):
+        arr = pa.FixedSizeListArray.from_arrays(arr, size)
+    return arr
+
+
+def windows_table(windows: list[Window], window: int) -> pa.Table:
+    schema = corpus_schema(window)
+    scalars = {name: [w.meta[name] for w in windows] for name in schema.names
+               if name not in ("motion", "mfcc", "chroma", "onset", "beat")}
+    n = len(windows)
+
+    def stack(attr: str, shape: tuple) -> np.ndarray:
+        return np.stack([getattr(w, attr) for w in windows]) if n else np.zeros((0, *shape))
+
+    arrays = {
+        "motion": _nested(stack("motion", (window, 17, 3)).astype(np.float32), pa.float32(), (window, 17, 3)),
+        "mfcc": _nested(stack("mfcc", (window, MFCC_DIMS)).astype(np.float32), pa.float32(), (window, MFCC_DIMS)),
+        "chroma": _nested(stack("chroma", (window, CHROMA_DIMS)).astype(np.float32), pa.float32(),
+                          (window, CHROMA_DIMS)),
+        "onset": _nested(stack("onset", (window,)).astype(np.float32), pa.float32(), (window,)),
+        "beat": _nested(stack("beat", (window,)).astype(np.int8), pa.int8(), (window,)),
+    }
+    columns = [arrays[f.name] if f.name in arrays else pa.array(scalars[f.name], f.type) for f in schema]
+    return pa.Table.from_arrays(columns, schema=schema)

@@ -1,0 +1,2 @@
+"""The thin training module (needs the ``train`` extra): stream shards, train a compact
+Two-Stream Motion Transformer, sample dance for new music."""

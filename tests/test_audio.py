@@ -1,0 +1,81 @@
+"""Audio: EBU R128 normalisation and 24 fps features with exact alignment."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pyloudnorm
+import pytest
+import soundfile as sf
+
+from pipeline.audio import FEATURE_SR, FPS, LoudnessOptions, compute_features, normalise_loudness
+
+
+def click_track(bpm: float, seconds: float, sr: int = FEATURE_SR, first: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """Short decaying 1 kHz clicks at ``bpm``; returns the audio and the click times."""
+    y = np.zeros(int(seconds * sr), np.float32)
+    times = np.arange(first, seconds - 0.1, 60.0 / bpm)
+    click = np.sin(2 * np.pi * 1000 * np.arange(int(0.03 * sr)) / sr) * np.exp(-np.arange(int(0.03 * sr)) / (0.005 * sr))
+    for t in times:
+        i = int(round(t * sr))
+        y[i: i + len(click)] += click[: len(y) - i]
+    return y, times
+
+
+def test_beat_flags_land_within_a_frame_of_the_clicks() -> None:
+    y, clicks = click_track(120, 30)
+    f = compute_features(y)
+    assert f.tempo == pytest.approx(120, rel=0.03)
+    beat_frames = np.flatnonzero(f.beat)
+    # every beat is within one frame of a click, and nearly every click after the first few has a beat
+    for frame in beat_frames:
+        assert np.min(np.abs(clicks * FPS - frame)) <= 1.0
+    assert len(beat_frames) >= 0.9 * len(clicks[4:])
+
+
+def test_features_stay_on_the_24_fps_grid_over_ten_minutes() -> None:
+    seconds = 600
+    y, clicks = click_track(100, seconds)
+    f = compute_features(y)
+    assert f.frames == 1 + len(y) // 512 == seconds * FPS + 1  # frame k centred at k/24 s, no drift by design
+    beats = np.flatnonzero(f.beat)
+
+    def offsets(frames: np.ndarray) -> np.ndarray:  # signed distance (frames) to the nearest click
+        click_frames = clicks * FPS
+        return np.array([fr - click_frames[np.argmin(np.abs(click_frames - fr))] for fr in frames])
+
+    early, late = offsets(beats[5:60]), offsets(beats[-60:])
+    assert np.abs(early).max() <= 1.5 and np.abs(late).max() <= 1.5
+    assert abs(late.mean() - early.mean()) < 1.0  # no drift between the first and the tenth minute
+    onsets = np.flatnonzero(f.onset > 0.5 * f.onset.max())
+    last_click_frame = clicks[-1] * FPS
+    assert np.min(np.abs(onsets - last_click_frame)) <= 1.0
+    assert f.mfcc.shape == (f.frames, 39) and f.chroma.shape == (f.frames, 12)
+
+
+def test_optional_feature_sets() -> None:
+    y, _ = click_track(120, 10)
+    f = compute_features(y, ("mel80", "beat_mfcc40"))
+    assert f.extra["mel80"].shape == (f.frames, 80)
+    assert f.extra["beat_mfcc40"].shape == (f.frames, 52)
+
+
+def loudness(path: Path) -> float:
+    y, sr = sf.read(path)
+    return pyloudnorm.Meter(sr).integrated_loudness(y)
+
+
+@pytest.mark.parametrize("clip", ["musicians_trio_music_raga.mp4", "dance_single_music_musepose.mp4"])
+def test_quiet_and_loud_clips_come_out_at_the_target_loudness(tmp_path: Path, media_dir: Path, clip: str) -> None:
+    out = tmp_path / "norm.wav"
+    normalise_loudness(media_dir / "videos" / clip, out, LoudnessOptions(target_lufs=-23.0))
+    assert sf.info(out).samplerate == 44100
+    assert loudness(out) == pytest.approx(-23.0, abs=1.0)
+
+
+def test_cover_art_stream_is_ignored(tmp_path: Path, media_dir: Path) -> None:
+    out = tmp_path / "norm.wav"
+    normalise_loudness(media_dir / "music/music_vibe_ace_kevin_macleod.ogg", out, LoudnessOptions(), audio_stream=0)
+    info = sf.info(out)
+    assert info.samplerate == 44100 and info.duration == pytest.approx(61.46, abs=0.1)

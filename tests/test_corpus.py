@@ -1,0 +1,133 @@
+"""Windows, the video-level split, shards that any Parquet reader reads, the streaming loader, training."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+import torch
+from torch.utils.data import DataLoader
+
+from pipeline.corpus import Window, split_of, window_starts
+from pipeline.train.dataset import WindowDataset
+from pipeline.train.loop import TrainConfig, train_tsmt
+from pipeline.train.model import TSMTConfig, TwoStreamMotionTransformer, generate
+from stages.shard import write_shards
+
+
+def test_a_45_s_clip_gives_three_windows_and_short_clips_none() -> None:
+    starts = window_starts(0, 45 * 24, 480, 240)
+    assert [(s / 24, (s + 480) / 24) for s in starts] == [(0, 20), (10, 30), (20, 40)]
+    assert window_starts(100, 479, 480, 240) == []
+    assert window_starts(7, 480, 480, 240) == [7]
+
+
+def test_split_is_by_video_stable_and_about_the_requested_share() -> None:
+    videos = [f"video{i}" for i in range(2000)]
+    splits = [split_of(v, 0.2) for v in videos]
+    assert splits == [split_of(v, 0.2) for v in videos]  # deterministic
+    assert 0.17 < splits.count("val") / len(videos) < 0.23
+
+
+def synthetic_windows(n_videos: int = 6, clips: int = 2, per_clip: int = 5, frames: int = 48,
+                      seed: int = 0) -> list[Window]:
+    """Dancing sinusoids whose phase follows a beat in the 'music' (so there is something to learn)."""
+    rng = np.random.default_rng(seed)
+    windows = []
+    for v in range(n_videos):
+        video = f"vid{v}"
+        for c in range(clips):
+            for w in range(per_clip):
+                t = (np.arange(frames) + w * 24) / 24
+                freq = rng.uniform(0.5, 2.0)
+                motion = np.zeros((frames, 17, 3), np.float32)
+                motion[:, :, 0] = 0.3 * np.sin(2 * np.pi * freq * t)[:, None] * np.linspace(0.2, 1, 17)
+                motion[:, :, 1] = np.linspace(-0.8, 0.8, 17)
+                beat = (np.sin(2 * np.pi * freq * t) > 0.99).astype(np.int8)
+                mfcc = np.tile(np.sin(2 * np.pi * freq * t)[:, None], (1, 39)).astype(np.float32)
+                meta = {"window_id": f"{video}_{c}_w{w:03d}", "split": split_of(video, 0.3), "video_id": video,
+                        "url": f"https://example.org/{video}", "title": "t", "channel": "ch", "style": "pop",
+                        "licence": "CC-BY", "segment_id": f"{video}_000", "clip_id": f"{video}_000_{c}_0",
+                        "track_id": c + 1, "start_frame": w * 24, "start_time": w, "segment_start": 0.0,
+                        "tempo": 60 * freq}
+                windows.append(Window(meta, motion, mfcc, np.zeros((frames, 12), np.float32),
+                                      np.abs(mfcc[:, 0]), beat))
+    return windows
+
+
+@pytest.fixture(scope="module")
+def corpus(tmp_path_factory) -> tuple[Path, list[Window]]:
+    root = tmp_path_factory.mktemp("corpus")
+    windows = synthetic_windows()
+    write_shards(root, windows, 48, per_shard=8, row_group=4, params={"window_seconds": 2})
+    return root / "data/corpus", windows
+
+
+def test_no_video_is_in_both_splits(corpus) -> None:
+    folder, windows = corpus
+    seen = {split: set(pd.read_parquet(folder / split)["video_id"]) for split in ("train", "val")}
+    assert seen["train"] and seen["val"] and not seen["train"] & seen["val"]
+
+
+def test_shards_round_trip_through_pyarrow_pandas_and_datasets(corpus) -> None:
+    import datasets
+
+    folder, windows = corpus
+    by_id = {w.meta["window_id"]: w for w in windows}
+    files = sorted(str(p) for p in (folder / "train").glob("*.parquet"))
+    table = pq.read_table(files)
+    motion = np.asarray(table.column("motion").combine_chunks().flatten().flatten().flatten()).reshape(-1, 48, 17, 3)
+    frame = pd.read_parquet(folder / "train")
+    hf = datasets.load_dataset("parquet", data_files=files, split="train")
+    assert table.num_rows == len(frame) == len(hf) > 0
+    for i, window_id in enumerate(table.column("window_id").to_pylist()):
+        expected = by_id[window_id]
+        assert np.array_equal(motion[i], expected.motion)
+        row = frame[frame.window_id == window_id].iloc[0]
+        assert np.array_equal(np.stack([np.stack(f) for f in row.motion]), expected.motion)
+        assert row.url == expected.meta["url"] and row.licence == "CC-BY"
+    for record in hf.select(range(3)):
+        assert np.array_equal(np.array(record["motion"], np.float32), by_id[record["window_id"]].motion)
+        assert np.array_equal(np.array(record["beat"], np.int8), by_id[record["window_id"]].beat)
+    meta = pq.read_schema(files[0]).metadata[b"dance3d"]
+    assert b'"schema_version": 1' in meta and b'"fps": 24' in meta
+
+
+def test_loader_yields_every_window_once_per_epoch_across_two_workers(corpus) -> None:
+    folder, windows = corpus
+    dataset = WindowDataset(folder / "train", shuffle_buffer=5, seed=3)
+    expected = sorted(w.meta["window_id"] for w in windows if w.meta["split"] == "train")
+    loader = DataLoader(dataset, batch_size=4, num_workers=2)
+    for epoch in range(2):
+        dataset.set_epoch(epoch)
+        seen = [i for batch in loader for i in batch["window_id"]]
+        assert sorted(seen) == expected  # each exactly once
+    batch = next(iter(DataLoader(dataset, batch_size=2)))
+    assert batch["motion"].shape == (2, 48, 51) and batch["audio"].shape == (2, 48, 27)
+
+
+def test_training_lowers_the_loss_clearly(corpus) -> None:
+    folder, _ = corpus
+    cfg = TrainConfig(steps=250, batch=8, lr=1e-3, crop_frames=32, shuffle_buffer=16,
+                      model=TSMTConfig(d_model=32, heads=2, ff=64, max_frames=64))
+    model, losses = train_tsmt(folder.parent.parent / "data/corpus", cfg)
+    assert np.mean(losses[-20:]) < 0.5 * np.mean(losses[:20])
+    seed = torch.zeros(4, 51)
+    audio = torch.zeros(20, 27)
+    out = generate(model, seed, audio, 16)
+    assert out.shape == (20, 51) and torch.isfinite(out).all()
+
+
+def test_generation_is_causal() -> None:
+    model = TwoStreamMotionTransformer(TSMTConfig(d_model=16, heads=2, ff=32, max_frames=32)).eval()
+    bins = torch.randint(0, 300, (1, 10, 51))
+    audio = torch.randn(1, 10, 27)
+    full = model(bins, audio)
+    changed = bins.clone()
+    changed[:, 7:] = torch.randint(0, 300, (1, 3, 51))
+    audio2 = audio.clone()
+    audio2[:, 7:] = torch.randn(1, 3, 27)
+    assert torch.allclose(full[:, :7], model(changed, audio2)[:, :7], atol=1e-5)  # the future does not leak
