@@ -129,7 +129,8 @@ def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, para
     for m in metas:  # windows overlap: count each clip frame once
         covered.setdefault(m["clip_id"], set()).update(range(m["start_frame"], m["start_frame"] + window))
     distinct_frames = sum(len(frames) for frames in covered.values())
-    totals = {"windows_train": n_train, "windows_val": len(metas) - n_train, "window_minutes": distinct_frames / 24 / 60}
+    totals = {"windows_train": n_train, "windows_val": len(metas) - n_train,
+              "window_minutes": distinct_frames / 24 / 60}
     series = {"source videos": [r["duration"] for r in ledger if r["status"] == "ok"],
               "trimmed segments": [s["frames"] / s["fps"] for s in segments], "clips": clip_seconds}
     card_params = {"window_seconds": window / 24, "hop_seconds": hop / 24}

@@ -16,7 +16,8 @@ def click_track(bpm: float, seconds: float, sr: int = FEATURE_SR, first: float =
     """Short decaying 1 kHz clicks at ``bpm``; returns the audio and the click times."""
     y = np.zeros(int(seconds * sr), np.float32)
     times = np.arange(first, seconds - 0.1, 60.0 / bpm)
-    click = np.sin(2 * np.pi * 1000 * np.arange(int(0.03 * sr)) / sr) * np.exp(-np.arange(int(0.03 * sr)) / (0.005 * sr))
+    n = np.arange(int(0.03 * sr))
+    click = np.sin(2 * np.pi * 1000 * n / sr) * np.exp(-n / (0.005 * sr))
     for t in times:
         i = int(round(t * sr))
         y[i: i + len(click)] += click[: len(y) - i]

@@ -49,7 +49,8 @@ class WindowDataset(IterableDataset):
         self.units = []
         for f in self.files:
             groups = list(range(pq.ParquetFile(f).num_row_groups))
-            self.units.extend((f, tuple(groups[i: i + groups_per_unit])) for i in range(0, len(groups), groups_per_unit))
+            blocks = range(0, len(groups), groups_per_unit)
+            self.units.extend((f, tuple(groups[i: i + groups_per_unit])) for i in blocks)
         self.shuffle_buffer = shuffle_buffer
         self.seed = seed
         self.shuffle = shuffle

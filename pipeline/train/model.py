@@ -74,7 +74,8 @@ class TwoStreamMotionTransformer(nn.Module):
         # Summing 51 embeddings: scale so the token starts at the size of one (a sane initial loss).
         pose = self.coord_embedding(pose_bins + self.offsets).sum(2) / COORDS ** 0.5 + self.pose_position(positions)
         music = self.audio_in(audio) + self.audio_position(positions)
-        fused = torch.cat([self.pose(pose, mask=mask, is_causal=True), self.audio(music, mask=mask, is_causal=True)], -1)
+        streams = [self.pose(pose, mask=mask, is_causal=True), self.audio(music, mask=mask, is_causal=True)]
+        fused = torch.cat(streams, -1)
         out = self.fusion(fused, mask=mask, is_causal=True)
         return self.head(out).view(b, t, COORDS, self.cfg.bins)
 
