@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 from pipeline.errors import Dance3dError
+from pipeline.paths import FAILURE_DIRS
 from stages import STAGES
 
 DESCRIPTION = """\
@@ -24,6 +25,7 @@ examples:
   dance3d run download        fetch the sources listed in manifests/sources.csv
   dance3d run trim            cut the annotated dance segments
   dance3d status              what has been downloaded and cut, and what failed
+  dance3d retry pose2d        re-run only the items pose2d recorded as failed
   dance3d manifests seed      propose a track manifest for every tracked segment without one
   dance3d manifests check     validate manifests: every problem as file:line: reason
   dance3d render data/motion24/musepose_dance_000.parquet musepose_dance_000_1_0 clip.mp4
@@ -42,6 +44,11 @@ def _parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="run one pipeline stage outside DVC",
                          description="Run one stage on the project in --root, as `dvc repro` would.")
     run.add_argument("stage", choices=STAGES, help="the stage to run")
+    retry = sub.add_parser("retry", help="re-run only the items a stage recorded as failed",
+                           description="Re-run the items listed in the stage's _failures.parquet, leaving the "
+                                       "others as they are (for download and trim, whose finished items are "
+                                       "always kept, this is a plain re-run).")
+    retry.add_argument("stage", choices=sorted(FAILURE_DIRS))
     sub.add_parser("status", help="summarise downloads, segments and failures",
                    description="Summarise the download ledger, the segment index and every stage's failures.")
     manifests = sub.add_parser("manifests", help="track manifests for annotators (seed, check)",
@@ -109,12 +116,31 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.command == "manifests":
         return _manifests(root, args)
+    if args.command == "retry":
+        return _retry(root, args.stage)
     if args.command == "status":
         from pipeline.status import summarise
 
         print(summarise(root))
         return 0
     return 1
+
+
+def _retry(root: Path, stage: str) -> int:
+    from pipeline.failures import read_failures
+    from pipeline.itemstage import only_items
+    from pipeline.stage import run_stage, setup_logging
+
+    setup_logging()
+    failed = {f.item for f in read_failures(root / FAILURE_DIRS[stage])}
+    if not failed:
+        print(f"{stage}: no recorded failures")
+        return 0
+    print(f"{stage}: retrying {len(failed)} items: {', '.join(sorted(failed))}")
+    module = importlib.import_module(f"stages.{stage}")
+    os.chdir(root)
+    with only_items(failed):
+        return run_stage(stage, module.run, root)
 
 
 def _sample(root: Path, args: argparse.Namespace) -> int:

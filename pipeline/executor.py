@@ -1,4 +1,4 @@
-"""One interface for running a function over work items: inline, threads or processes.
+"""One interface for running a function over work items: inline, threads, processes or Ray.
 
 Each item's outcome comes back as an ``Outcome`` (value or error), so one bad item
 never stops the others. Per-worker state (e.g. ONNX sessions) is built once per worker
@@ -36,6 +36,51 @@ def _call(fn: Callable[[Any], Any], item: Any) -> Outcome:
         return Outcome(item, error_class=type(exc).__name__, error_message=message)
 
 
+def _run_ray(fn, items, workers, initializer, initargs, options: dict, gpu: bool) -> Iterator[Outcome]:
+    """Items as tasks on Ray actors: each actor builds its per-worker state (e.g. an ONNX
+    session) once and then takes items; at most two items per actor are in flight."""
+    import ray
+
+    if not ray.is_initialized():
+        address = options.get("address") or None
+        ray.init(address=address, num_cpus=None if address else int(options.get("num_cpus") or 0) or None,
+                 include_dashboard=False, log_to_driver=False, configure_logging=False)
+    gpus = 1 if gpu and ray.cluster_resources().get("GPU", 0) > 0 else 0
+
+    @ray.remote(num_cpus=1, num_gpus=gpus)
+    class Worker:
+        def __init__(self) -> None:
+            if initializer is not None:
+                initializer(*initargs)
+
+        def run(self, item):
+            return _call(fn, item)
+
+    n_actors = max(1, min(workers, len(items)))
+    actors = [Worker.remote() for _ in range(n_actors)]
+    load = [0] * n_actors
+    pending: dict = {}
+    queue = list(items)
+    try:
+        while queue or pending:
+            while queue and len(pending) < 2 * n_actors:  # bounded in-flight work
+                a = load.index(min(load))
+                load[a] += 1
+                item = queue.pop(0)
+                pending[actors[a].run.remote(item)] = (item, a)
+            done, _ = ray.wait(list(pending), num_returns=1)
+            item, a = pending.pop(done[0])
+            load[a] -= 1
+            try:
+                yield ray.get(done[0])
+            except ray.exceptions.RayActorError:
+                yield Outcome(item, error_class="WorkerCrashed",
+                              error_message="the Ray worker died (crash or out of memory) on this item")
+    finally:
+        for actor in actors:
+            ray.kill(actor)
+
+
 def _isolated(fn: Callable[[Any], Any], item: Any, initializer, initargs: tuple) -> Outcome:
     with cf.ProcessPoolExecutor(1, mp_context=mp.get_context("spawn"), initializer=initializer,
                                 initargs=initargs) as pool:
@@ -56,14 +101,22 @@ def run_items(
     initargs: Iterable[Any] = (),
     desc: str = "",
     unit: str = "item",
+    ray_options: dict | None = None,
+    gpu: bool = False,
 ) -> Iterator[Outcome]:
     """Yield one Outcome per item, in completion order, with a progress bar.
 
-    ``kind`` is "process" (CPU-bound work), "thread" (I/O-bound work such as downloads);
-    ``workers <= 1`` runs inline in this process.
+    ``kind`` is "process" (CPU-bound work), "thread" (I/O-bound work such as downloads)
+    or "ray" (a Ray cluster, ``ray_options``: address, num_cpus); ``workers <= 1`` runs
+    inline in this process (not for "ray").
     """
     bar = tqdm(total=len(items), desc=desc, unit=unit, disable=not items, leave=True)
     try:
+        if kind == "ray":
+            for outcome in _run_ray(fn, items, workers, initializer, tuple(initargs), ray_options or {}, gpu):
+                bar.update()
+                yield outcome
+            return
         if workers <= 1 or len(items) <= 1:
             if initializer is not None:
                 initializer(*initargs)

@@ -41,6 +41,13 @@ def write_failures(folder: Path, stage: str, failures: list[Failure]) -> Path:
     return path
 
 
+def read_failures(folder: Path) -> list[Failure]:
+    import pyarrow.parquet as pq
+
+    path = Path(folder) / FAILURES_FILE
+    return [Failure(**row) for row in pq.read_table(path).to_pylist()] if path.exists() else []
+
+
 def check_failure_ratio(stage: str, failed: int, total: int, max_ratio: float) -> None:
     """Raise StageFailed when the failed share exceeds ``max_ratio``."""
     if total and failed / total > max_ratio:

@@ -4,6 +4,8 @@ executor, record failures, drop outputs of items that no longer exist, check the
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import functools
 import logging
 from dataclasses import dataclass, field
@@ -11,10 +13,22 @@ from pathlib import Path
 from typing import Any, Callable, Iterable
 
 from pipeline.executor import run_items
-from pipeline.failures import Failure, check_failure_ratio, now, write_failures
+from pipeline.failures import Failure, check_failure_ratio, now, read_failures, write_failures
 from pipeline.storage import read_meta, remove_stale_temps
 
 log = logging.getLogger(__name__)
+
+# `dance3d retry`: when set, only these items are attempted; the others stay as they are.
+_ONLY: contextvars.ContextVar[frozenset[str] | None] = contextvars.ContextVar("only_items", default=None)
+
+
+@contextlib.contextmanager
+def only_items(items: set[str]):
+    token = _ONLY.set(frozenset(items))
+    try:
+        yield
+    finally:
+        _ONLY.reset(token)
 
 
 @dataclass(frozen=True)
@@ -52,30 +66,39 @@ def run_item_stage(
     initializer: Callable[..., None] | None = None,
     initargs: tuple = (),
     unit: str = "segment",
+    gpu: bool = False,
 ) -> StageReport:
     out_dirs = list(out_dirs)
+    only = _ONLY.get()
     for folder in out_dirs:
         folder.mkdir(parents=True, exist_ok=True)
         remove_stale_temps(folder)
-    _remove_stale_outputs(out_dirs, {i.item_id for i in items})
+    if only is None:
+        _remove_stale_outputs(out_dirs, {i.item_id for i in items})
     report = StageReport()
     todo = []
+    kept_failures = [] if only is None else [f for f in read_failures(out_dirs[0]) if f.item not in only]
     for item in items:
-        if is_up_to_date(item):
+        if (only is not None and item.item_id not in only) or is_up_to_date(item):
             report.skipped.append(item.item_id)
         else:
             todo.append(item)
     log.info("%s: %d items, %d up to date, %d to do", stage, len(items), len(report.skipped), len(todo))
+    executor = str(params.get("executor", "local"))
+    if executor not in ("local", "ray"):
+        raise ValueError(f"{stage}: executor must be local or ray, not {executor!r}")
     for outcome in run_items(functools.partial(_apply, fn), todo, workers=int(params.get("workers", 1)),
-                             kind=kind, initializer=initializer, initargs=initargs, desc=stage, unit=unit):
+                             kind="ray" if executor == "ray" else kind, initializer=initializer, initargs=initargs,
+                             desc=stage, unit=unit, ray_options=params.get("ray") or {}, gpu=gpu):
         item: WorkItem = outcome.item
         if outcome.ok:
             report.done[item.item_id] = outcome.value
         else:
             report.failures.append(Failure(item.item_id, stage, outcome.error_class, outcome.error_message, now()))
             log.warning("%s: %s: %s", item.item_id, outcome.error_class, outcome.error_message)
-    write_failures(out_dirs[0], stage, report.failures)
-    check_failure_ratio(stage, len(report.failures), len(items), float(params.get("max_failure_ratio", 0.2)))
+    failures = kept_failures + report.failures
+    write_failures(out_dirs[0], stage, failures)
+    check_failure_ratio(stage, len(failures), len(items), float(params.get("max_failure_ratio", 0.2)))
     return report
 
 

@@ -9,7 +9,7 @@ import yaml
 
 from pipeline.errors import InputError
 
-COMMON_KEYS = ("workers", "executor", "max_failure_ratio")
+COMMON_KEYS = ("workers", "executor", "max_failure_ratio", "ray")
 
 
 def load_params(path: str | Path = "params.yaml") -> dict[str, Any]:

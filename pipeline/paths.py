@@ -19,3 +19,7 @@ LIFTER = Path("models/lifter.onnx")
 AUDIO = Path("data/audio")
 AUDIO_FEATURES = Path("data/audio_features")
 CORPUS = Path("data/corpus")
+
+# The folder holding each stage's _failures.parquet.
+FAILURE_DIRS = {"download": RAW, "trim": SEGMENTS, "pose2d": POSE2D, "track": TRACKS, "clean": CLEAN,
+                "lift": POSE3D, "smooth": SMOOTH, "resample": MOTION24, "audio": AUDIO_FEATURES}

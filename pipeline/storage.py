@@ -14,6 +14,15 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 META_KEY = b"dance3d"
+# How a stage runs (not what it computes): never recorded in outputs nor in fingerprints, so
+# switching executor or worker count redoes nothing and gives byte-identical files.
+EXECUTION_KEYS = frozenset({"workers", "executor", "ray", "max_failure_ratio"})
+
+
+def _without_execution(value: Any) -> Any:
+    if isinstance(value, Mapping):
+        return {k: v for k, v in value.items() if k not in EXECUTION_KEYS}
+    return value
 
 
 @contextlib.contextmanager
@@ -63,7 +72,7 @@ def sha256_file(path: Path, chunk: int = 1 << 20) -> str:
 
 def fingerprint(*parts: Any) -> str:
     """A stable short hash of JSON-serialisable parts (inputs' hashes, params)."""
-    blob = json.dumps(parts, sort_keys=True, separators=(",", ":"), default=str)
+    blob = json.dumps([_without_execution(p) for p in parts], sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(blob.encode()).hexdigest()[:20]
 
 
@@ -90,7 +99,7 @@ def write_parquet(
     """Write ``table`` atomically with dance3d provenance in its key-value metadata."""
     meta = {
         "schema_version": schema_version,
-        "params": dict(params or {}),
+        "params": _without_execution(dict(params or {})),
         "inputs": dict(inputs or {}),
         **dict(extra or {}),
     }

@@ -68,7 +68,7 @@ def run(root: Path) -> None:
                inputs, fp)
         items.append(WorkItem(clean_file.stem, fp, (out,), job))
     run_item_stage("lift", items, lift_segment, out_dirs=[root / POSE3D], params=params,
-                   initializer=load_lifter, initargs=(str(model), int(params.get("threads", 1))))
+                   initializer=load_lifter, initargs=(str(model), int(params.get("threads", 1))), gpu=True)
 
 
 def main() -> int:

@@ -80,7 +80,7 @@ def run(root: Path) -> None:
         items.append(WorkItem(seg["segment_id"], fp, (out,),
                               (seg_dir / seg["path"], out, seg, opts, params, inputs, fp)))
     report = run_item_stage("pose2d", items, pose_segment, out_dirs=[out_dir], params=params,
-                            initializer=load_models, initargs=init_args)
+                            initializer=load_models, initargs=init_args, gpu=True)
     for seg_id, r in sorted(report.done.items()):
         if r["frames_with_people"] == 0:
             log.warning("%s: no people found in any of its %d frames", seg_id, r["frames"])

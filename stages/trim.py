@@ -75,7 +75,9 @@ def run(root: Path) -> None:
     _remove_stale(seg_dir, {s.segment_id for s in plan})
     log.info("%d segments planned: %d up to date, %d to cut", len(plan), len(rows), len(jobs))
     failures = []
-    for outcome in run_items(_cut, jobs, workers=int(params.get("workers", 1)), desc="trim", unit="segment"):
+    executor = "ray" if params.get("executor") == "ray" else "process"
+    for outcome in run_items(_cut, jobs, workers=int(params.get("workers", 1)), kind=executor, desc="trim",
+                             unit="segment", ray_options=params.get("ray") or {}):
         spec: SegmentSpec = outcome.item[1]
         if outcome.ok:
             rows[spec.segment_id] = outcome.value

@@ -1,0 +1,140 @@
+"""Killed runs, resumed runs, repeated runs, incremental runs and retries."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+
+from tests.conftest import PROJECT, run_stages, set_params, write_sources
+
+OUTPUTS = ("data/segments", "data/pose2d", "data/tracks", "data/qc", "data/clean")
+
+
+def digests(root: Path) -> dict[str, str]:
+    return {f"{folder}/{p.name}": hashlib.sha256(p.read_bytes()).hexdigest()
+            for folder in OUTPUTS for p in sorted((root / folder).glob("*"))
+            if p.is_file() and not p.name.startswith("_")}
+
+
+def mtimes(root: Path) -> dict[str, int]:
+    """Per-item outputs (catalogues such as the segment index are rewritten by design)."""
+    return {f"{folder}/{p.name}": p.stat().st_mtime_ns for folder in OUTPUTS
+            for p in sorted((root / folder).glob("*"))
+            if p.is_file() and not p.name.startswith("_") and p.name != "index.parquet"}
+
+
+def new_project(root: Path, media_dir: Path, videos: list[tuple[str, str]], annotations: str) -> Path:
+    (root / "manifests").mkdir(parents=True)
+    (root / "annotations").mkdir()
+    shutil.copy(PROJECT / "params.yaml", root / "params.yaml")
+    write_sources(root, [(vid, media_dir / "videos" / name) for vid, name in videos])
+    (root / "annotations/segments.csv").write_text("video_id,start,end\n" + annotations)
+    return root
+
+
+SOLO = [("solo", "dance_solo_384x496_30fps.mp4")]
+SOLO_SEGMENTS = "solo,0,2\nsolo,2,4\nsolo,4,6\nsolo,6,8\n"
+
+
+def _run_and_kill(root: Path, stage: str, after: float, env: dict) -> None:
+    proc = subprocess.Popen([sys.executable, "-m", f"stages.{stage}"], cwd=root, env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    time.sleep(after)
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGKILL)  # the whole job, ffmpeg children included, like a crash
+    proc.wait()
+
+
+@pytest.mark.slow
+def test_sigkill_at_any_point_then_resume_gives_byte_identical_outputs(tmp_path: Path, media_dir: Path,
+                                                                       models_dir: Path) -> None:
+    env = {**os.environ, "DANCE3D_MODELS": str(models_dir), "PYTHONPATH": str(PROJECT)}
+    clean = new_project(tmp_path / "clean", media_dir, SOLO, SOLO_SEGMENTS)
+    for stage in ("download", "trim", "pose2d", "track", "clean"):
+        subprocess.run([sys.executable, "-m", f"stages.{stage}"], cwd=clean, env=env, check=True,
+                       capture_output=True)
+    reference = digests(clean)
+    assert len(reference) == 4 * 5 + 1  # 4 segments x (mp4, pose2d, tracks, qc, clean) + the index; no wav: silent
+
+    for i, after in enumerate((1.0, 2.5, 4.0)):
+        root = new_project(tmp_path / f"killed{i}", media_dir, SOLO, SOLO_SEGMENTS)
+        subprocess.run([sys.executable, "-m", "stages.download"], cwd=root, env=env, check=True, capture_output=True)
+        for stage in ("trim", "pose2d", "track"):
+            _run_and_kill(root, stage, after, env)
+            for path in (root / "data").rglob("*.parquet"):  # nothing truncated is ever visible
+                if not path.name.startswith("."):
+                    pq.read_metadata(path)
+            subprocess.run([sys.executable, "-m", f"stages.{stage}"], cwd=root, env=env, check=True,
+                           capture_output=True)
+        subprocess.run([sys.executable, "-m", "stages.clean"], cwd=root, env=env, check=True, capture_output=True)
+        assert not list((root / "data").rglob(".tmp-*"))
+        assert digests(root) == reference, f"killed after {after} s"
+
+
+@pytest.mark.slow
+def test_two_full_runs_are_byte_identical(tmp_path: Path, media_dir: Path, models_dir: Path, monkeypatch) -> None:
+    monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
+    roots = [new_project(tmp_path / f"run{i}", media_dir, SOLO + [("dance", "dance_single_music_musepose.mp4")],
+                         "solo,0,2\ndance,1,3\n") for i in range(2)]
+    for root in roots:
+        run_stages(root, "download", "trim", "pose2d", "track", "clean", "audio")
+    assert digests(roots[0]) == digests(roots[1])
+    feats = [hashlib.sha256((r / "data/audio_features/dance_000.parquet").read_bytes()).hexdigest() for r in roots]
+    assert feats[0] == feats[1]
+
+
+@pytest.mark.slow
+def test_adding_a_video_processes_only_that_video(tmp_path: Path, media_dir: Path, models_dir: Path,
+                                                  monkeypatch) -> None:
+    monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
+    root = new_project(tmp_path / "p", media_dir, SOLO + [("taiji", "movement_single_speech_taiji.mp4")],
+                       "solo,0,2\ntaiji,1,3\n")
+    stages = ("download", "trim", "pose2d", "track", "clean")
+    run_stages(root, *stages)
+    before = mtimes(root)
+    ledger_rows = pq.read_table(root / "data/raw/ledger.parquet").num_rows
+    (root / "manifests/sources.csv").write_text((root / "manifests/sources.csv").read_text()
+                                                + f"dance,{media_dir / 'videos/dance_single_music_musepose.mp4'}\n")
+    (root / "annotations/segments.csv").write_text("video_id,start,end\nsolo,0,2\ntaiji,1,3\ndance,1,3\n")
+    run_stages(root, *stages)
+    after = mtimes(root)
+    redone = {k for k in before if after.get(k) != before[k]}
+    added = set(after) - set(before)
+    assert redone == set()  # nothing of the first two videos was touched
+    assert {k.split("/")[-1].split(".")[0] for k in added} == {"dance_000"}
+    assert sorted(k.split("/")[1] for k in added) == ["clean", "pose2d", "qc", "segments", "segments", "tracks"]
+    assert pq.read_table(root / "data/raw/ledger.parquet").num_rows == ledger_rows + 1
+
+
+def test_retry_reruns_only_the_failed_items(tmp_path: Path, media_dir: Path, models_dir: Path, monkeypatch) -> None:
+    monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
+    root = new_project(tmp_path / "p", media_dir, SOLO, "solo,0,2\nsolo,2,4\n")
+    run_stages(root, "download", "trim")
+    good = root / "data/segments/solo_000.mp4"
+    bad = root / "data/segments/solo_001.mp4"
+    original = bad.read_bytes()
+    bad.write_bytes(b"not a video any more")
+    set_params(root, "pose2d", max_failure_ratio=1.0)
+    run_stages(root, "pose2d")
+    failures = pq.read_table(root / "data/pose2d/_failures.parquet").to_pylist()
+    assert [f["item"] for f in failures] == ["solo_001"]
+    assert "solo_001.mp4: not a readable media file" in failures[0]["message"]
+    kept = (root / "data/pose2d/solo_000.parquet").stat().st_mtime_ns
+    bad.write_bytes(original)  # the annotator fixed the file
+    out = subprocess.run([sys.executable, "-m", "pipeline.cli", "--root", str(root), "retry", "pose2d"],
+                         capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(PROJECT)})
+    assert out.returncode == 0, out.stderr
+    assert "retrying 1 items: solo_001" in out.stdout
+    assert (root / "data/pose2d/solo_001.parquet").exists()
+    assert (root / "data/pose2d/solo_000.parquet").stat().st_mtime_ns == kept
+    assert pq.read_table(root / "data/pose2d/_failures.parquet").num_rows == 0
+    assert good.exists()
