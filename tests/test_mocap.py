@@ -12,7 +12,7 @@ from pipeline.mocap.skeleton import bone_lengths, coco_from_h36m
 from pipeline.mocap.sources import SOURCES, load_source, resample
 from pipeline.motion_qc import LIMBS
 
-ACROBATICS = ("backflip", "cartwheel", "crawl", "roll", "getup", "sideflip", "spinkick", "005_06")
+ACROBATICS = ("backflip", "cartwheel", "crawl", "roll", "getup", "sideflip", "spinkick", "humanoid3d_spin", "005_06")
 
 
 @pytest.fixture(scope="module")
