@@ -23,6 +23,7 @@ log = logging.getLogger(__name__)
 
 STATUSES = ("ok", "failed", "throttled", "skipped")
 
+_EMPTY = re.compile(r"Did not get any data blocks|downloaded file is empty", re.I)
 _RATE_LIMIT = re.compile(r"HTTP Error 429|Too Many Requests|Sign in to confirm|rate.?limit", re.I)
 _UNAVAILABLE = re.compile(r"Private video|Video unavailable|has been removed|account .* terminated|not available", re.I)
 _NOT_FOUND = re.compile(r"No such file|HTTP Error 404|Not Found", re.I)
@@ -78,6 +79,8 @@ def classify_error(message: str) -> str:
         return "rate_limited"
     if _UNSUPPORTED.search(message):
         return "unsupported_url"
+    if _EMPTY.search(message):
+        return "empty"
     if _NOT_FOUND.search(message):
         return "not_found"
     if _UNAVAILABLE.search(message):
@@ -159,7 +162,7 @@ def download_source(source: Source, raw_dir: Path, opts: DownloadOptions,
         except Exception as exc:  # yt-dlp raises several unrelated types
             message = _clean(str(exc))
             row.error_class = classify_error(message)
-            row.error_message = message
+            row.error_message = f"the source is empty (0 bytes): {message}" if row.error_class == "empty" else message
             if row.error_class == "rate_limited":
                 shutil.rmtree(stage, ignore_errors=True)
                 row.status = "throttled"
