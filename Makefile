@@ -12,7 +12,7 @@ DANCE3D_MODELS ?= $(abspath ../shared/models)
 DANCE3D_MOCAP ?= $(abspath ../shared/mocap)
 export DANCE3D_MEDIA DANCE3D_MODELS DANCE3D_MOCAP
 
-.PHONY: setup demo demo-media test test-fast clean-demo
+.PHONY: setup demo demo-media test test-fast browser clean-demo
 
 setup: $(VENV)/.installed
 
@@ -37,6 +37,11 @@ test: setup
 
 test-fast: setup
 	PATH="$(BIN):$$PATH" pytest -m "not slow"
+
+# Debian's Chromium and chromedriver, for the review page's browser test (needs root).
+browser:
+	apt-get update -qq
+	DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver
 
 clean-demo:
 	rm -rf data demo/media
