@@ -44,7 +44,8 @@ def make(root: Path, videos: list[str], **common) -> Path:
 
 def write(root: Path, videos: list[str]) -> None:
     media = Path(os.environ["DANCE3D_MEDIA"]) / "videos"
-    (root / "manifests/sources.csv").write_text("video_id,url\n" + "".join(f"{v},{media / VIDEOS[v]}\n" for v in videos))
+    rows = "".join(f"{v},{media / VIDEOS[v]}\n" for v in videos)
+    (root / "manifests/sources.csv").write_text("video_id,url\n" + rows)
     (root / "annotations/segments.csv").write_text("video_id,start,end\n" + "".join(f"{SEGMENTS[v]}\n" for v in videos))
 
 

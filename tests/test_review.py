@@ -54,11 +54,13 @@ def test_unedited_manifest_round_trips_byte_for_byte(site) -> None:
     root, url = site
     path = root / "manifests/tracks/vid_000.csv"
     path.parent.mkdir(parents=True)
-    original = ("# a comment the annotator wrote\ntrack_id,start,end,keep,note,frames,mean_score,box_height,motion,reason\n"
+    original = ("# a comment the annotator wrote\n"
+                "track_id,start,end,keep,note,frames,mean_score,box_height,motion,reason\n"
                 "1,0.0,9.958,yes,,,,,,\n2,2,5.958,no,audience,,,,,\n")
     path.write_text(original)
     segment = json.loads(call(f"{url}/api/segments/vid_000")[1])
-    status, body, _ = call(f"{url}/api/segments/vid_000", "PUT", {"version": segment["version"], "rows": segment["rows"]})
+    unedited = {"version": segment["version"], "rows": segment["rows"]}
+    status, body, _ = call(f"{url}/api/segments/vid_000", "PUT", unedited)
     assert status == 200 and json.loads(body)["unchanged"] is True
     assert path.read_text() == original
 
@@ -95,8 +97,8 @@ def test_a_stale_overwrite_is_refused(site) -> None:
     path.write_text(edited_elsewhere)  # someone edits the file while the page is open
     rows = segment["rows"]
     rows[0]["note"] = "mine"
-    status, body, _ = call(f"{url}/api/segments/vid_000", "PUT", {"version": json.loads(call(
-        f"{url}/api/segments/vid_000")[1])["version"][:0] + "stale", "rows": rows})
+    status, body, _ = call(f"{url}/api/segments/vid_000", "PUT", {"version": segment["version"] or "loaded-earlier",
+                                                                  "rows": rows})
     assert status == 409 and "changed on disk" in json.loads(body)["error"]
     assert path.read_text() == edited_elsewhere
 

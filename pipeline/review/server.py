@@ -23,8 +23,14 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
 from pipeline.ids import is_safe_id
-from pipeline.manifests import (INFO, Span, check_manifest_file, parse_manifest, recorded_tracks_fingerprint,
-                                write_manifest)
+from pipeline.manifests import (
+    INFO,
+    Span,
+    check_manifest_file,
+    parse_manifest,
+    recorded_tracks_fingerprint,
+    write_manifest,
+)
 from pipeline.paths import QC, TRACK_MANIFESTS, TRACKS
 from pipeline.proposals import ProposalOptions, propose, track_stats
 from pipeline.trackfile import load_tracks
