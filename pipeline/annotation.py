@@ -9,6 +9,7 @@ from pathlib import Path
 from pipeline.manifests import Problem, check_manifest_file, write_manifest
 from pipeline.paths import TRACK_MANIFESTS, TRACKS
 from pipeline.proposals import ProposalOptions, propose
+from pipeline.storage import item_files
 from pipeline.trackfile import load_tracks
 
 log = logging.getLogger(__name__)
@@ -21,8 +22,7 @@ def proposal_options(params: dict) -> ProposalOptions:
 
 
 def tracked_segments(root: Path) -> list[str]:
-    folder = root / TRACKS
-    return sorted(p.stem for p in folder.glob("*.parquet") if not p.name.startswith("_")) if folder.exists() else []
+    return [p.stem for p in item_files(root / TRACKS)]
 
 
 def seed_manifests(root: Path, opts: ProposalOptions) -> tuple[list[Path], list[Path]]:

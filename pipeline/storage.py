@@ -112,6 +112,18 @@ def write_parquet(
         pq.write_table(table, tmp, compression=compression, row_group_size=row_group_size)
 
 
+def write_json(path: Path, payload: Any) -> None:
+    """A metrics-style JSON file, written atomically with sorted keys."""
+    with atomic_path(Path(path)) as tmp:
+        tmp.write_text(json.dumps(payload, indent=2, sort_keys=True) + "\n")
+
+
+def item_files(folder: Path) -> list[Path]:
+    """A stage folder's per-item Parquet files (not ``_failures.parquet`` or other ``_`` files)."""
+    folder = Path(folder)
+    return sorted(p for p in folder.glob("*.parquet") if not p.name.startswith(("_", "."))) if folder.exists() else []
+
+
 def read_meta(path: Path) -> dict[str, Any]:
     """The dance3d metadata of a Parquet file ({} if it has none)."""
     schema = pq.read_schema(path)

@@ -4,7 +4,6 @@ Segments without an audio track are listed in metrics/audio.json and left out do
 
 from __future__ import annotations
 
-import json
 import logging
 import sys
 from pathlib import Path
@@ -19,7 +18,7 @@ from pipeline.itemstage import WorkItem, run_item_stage
 from pipeline.params import load_params, stage_params
 from pipeline.paths import AUDIO, AUDIO_FEATURES, METRICS, SEGMENTS
 from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import atomic_path, code_fingerprint, fingerprint, write_parquet
+from pipeline.storage import code_fingerprint, fingerprint, write_json, write_parquet
 
 log = logging.getLogger("dance3d.audio")
 SCHEMA_VERSION = 1
@@ -72,9 +71,8 @@ def run(root: Path) -> None:
     if silent:
         log.info("%d segments have no audio track and are left out downstream: %s", len(silent), ", ".join(silent))
     run_item_stage("audio", items, audio_segment, out_dirs=[root / AUDIO_FEATURES, root / AUDIO], params=params)
-    with atomic_path(root / METRICS / "audio.json") as tmp:
-        tmp.write_text(json.dumps({"segments_with_audio": len(items), "segments_without_audio": sorted(silent)},
-                                  indent=2) + "\n")
+    write_json(root / METRICS / "audio.json",
+               {"segments_with_audio": len(items), "segments_without_audio": sorted(silent)})
 
 
 def main() -> int:

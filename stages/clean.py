@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import logging
 import sys
 from pathlib import Path
@@ -21,7 +20,15 @@ from pipeline.params import load_params, stage_params
 from pipeline.paths import CLEAN, METRICS, TRACK_MANIFESTS, TRACKS
 from pipeline.proposals import propose
 from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import atomic_path, code_fingerprint, fingerprint, read_meta, sha256_file, write_parquet
+from pipeline.storage import (
+    code_fingerprint,
+    fingerprint,
+    item_files,
+    read_meta,
+    sha256_file,
+    write_json,
+    write_parquet,
+)
 from pipeline.trackfile import load_tracks
 
 log = logging.getLogger("dance3d.clean")
@@ -102,9 +109,7 @@ def _write_metrics(root: Path, skipped: list[str]) -> None:
     clips = clip_frames = dropped = interpolated = 0
     sources = {"manifest": 0, "proposal": 0}
     minutes = 0.0
-    for path in sorted((root / CLEAN).glob("*.parquet")):
-        if path.name.startswith("_"):
-            continue
+    for path in item_files(root / CLEAN):
         meta = read_meta(path)
         table = pq.read_table(path, columns=["clip_id", "interpolated"])
         clips += len(set(table.column("clip_id").to_pylist()))
@@ -117,8 +122,7 @@ def _write_metrics(root: Path, skipped: list[str]) -> None:
                "segments_skipped": len(skipped), "clips": clips, "clip_minutes": round(minutes, 3),
                "interpolated_frame_share": round(interpolated / clip_frames, 4) if clip_frames else 0.0,
                "dropped_short_clips": dropped}
-    with atomic_path(root / METRICS / "clean.json") as tmp:
-        tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n")
+    write_json(root / METRICS / "clean.json", metrics)
 
 
 def main() -> int:

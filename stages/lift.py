@@ -17,7 +17,7 @@ from pipeline.motionfile import MotionClip, clips_to_table
 from pipeline.params import load_params, stage_params
 from pipeline.paths import CLEAN, POSE3D
 from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import code_fingerprint, fingerprint, read_meta, sha256_file, write_parquet
+from pipeline.storage import code_fingerprint, fingerprint, item_files, read_meta, sha256_file, write_parquet
 
 SCHEMA_VERSION = 1
 _STATE: dict = {}
@@ -58,9 +58,7 @@ def run(root: Path) -> None:
                                 "convert the official weights with `dance3d models convert-videopose3d`")
     model_hash = sha256_file(model)
     items = []
-    for clean_file in sorted((root / CLEAN).glob("*.parquet")):
-        if clean_file.name.startswith("_"):
-            continue
+    for clean_file in item_files(root / CLEAN):
         inputs = {"clean": read_meta(clean_file).get("fingerprint", ""), "lifter": model_hash}
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out = root / POSE3D / clean_file.name

@@ -15,7 +15,7 @@ from pipeline.params import load_params, stage_params
 from pipeline.paths import MOTION24, SMOOTH
 from pipeline.resample import TARGET_FPS, resample_cubic
 from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import code_fingerprint, fingerprint, read_meta, write_parquet
+from pipeline.storage import code_fingerprint, fingerprint, item_files, read_meta, write_parquet
 
 SCHEMA_VERSION = 1
 CODE = code_fingerprint(pipeline.resample)
@@ -42,9 +42,7 @@ def resample_segment(job: tuple) -> dict:
 def run(root: Path) -> None:
     params = stage_params(load_params(root / "params.yaml"), "resample")
     items = []
-    for src in sorted((root / SMOOTH).glob("*.parquet")):
-        if src.name.startswith("_"):
-            continue
+    for src in item_files(root / SMOOTH):
         inputs = {"smooth": read_meta(src).get("fingerprint", "")}
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out = root / MOTION24 / src.name

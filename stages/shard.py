@@ -3,7 +3,6 @@ data/corpus/card.md (+ durations.png), metrics/corpus.json, metrics/durations.cs
 
 from __future__ import annotations
 
-import json
 import logging
 import shutil
 import sys
@@ -19,7 +18,7 @@ from pipeline.motionfile import read_clips
 from pipeline.params import load_params, stage_params
 from pipeline.paths import AUDIO_FEATURES, CLEAN, CORPUS, METRICS, MOTION24, RAW, SEGMENTS, TRACKS
 from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import atomic_path, read_meta, write_parquet
+from pipeline.storage import atomic_path, item_files, read_meta, write_json, write_parquet
 from pipeline.trackfile import load_tracks
 
 log = logging.getLogger("dance3d.shard")
@@ -40,9 +39,7 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float) -> t
     segments = read_index(root / SEGMENTS)
     windows: list[Window] = []
     counts = {"clips": 0, "clips_without_audio": 0, "clips_too_short": 0}
-    for motion_file in sorted((root / MOTION24).glob("*.parquet")):
-        if motion_file.name.startswith("_"):
-            continue
+    for motion_file in item_files(root / MOTION24):
         seg_id = motion_file.stem
         seg = segments.get(seg_id)
         feature_file = root / AUDIO_FEATURES / f"{seg_id}.parquet"
@@ -108,15 +105,12 @@ def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, para
     ledger = list(read_ledger(root / RAW).values())
     segments = list(read_index(root / SEGMENTS).values())
     track_ids: dict[str, int] = {}
-    for f in sorted((root / TRACKS).glob("*.parquet")):
-        if not f.name.startswith("_"):
-            video = segments_video(segments, f.stem)
-            track_ids[video] = track_ids.get(video, 0) + len(load_tracks(f).ids)
+    for f in item_files(root / TRACKS):
+        video = segments_video(segments, f.stem)
+        track_ids[video] = track_ids.get(video, 0) + len(load_tracks(f).ids)
     clip_minutes: dict[str, float] = {}
     clip_seconds: list[float] = []
-    for f in sorted((root / CLEAN).glob("*.parquet")):
-        if f.name.startswith("_"):
-            continue
+    for f in item_files(root / CLEAN):
         fps = read_meta(f)["fps"]
         ids = pq.read_table(f, columns=["clip_id"]).column("clip_id").to_pylist()
         video = segments_video(segments, f.stem)
@@ -147,8 +141,7 @@ def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, para
                "track_minutes": total.get("track_minutes", 0.0), "windows_train": totals["windows_train"],
                "windows_val": totals["windows_val"], "clips": counts["clips"],
                "clips_without_audio": counts["clips_without_audio"], "clips_too_short": counts["clips_too_short"]}
-    with atomic_path(root / METRICS / "corpus.json") as tmp:
-        tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n")
+    write_json(root / METRICS / "corpus.json", metrics)
 
 
 def segments_video(segments: list[dict], seg_id: str) -> str:

@@ -3,7 +3,6 @@ coordinate, lambda from params), plus per-clip QC in the file metadata and metri
 
 from __future__ import annotations
 
-import json
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -19,7 +18,7 @@ from pipeline.params import load_params, stage_params
 from pipeline.paths import METRICS, POSE3D, SMOOTH
 from pipeline.smoothing import hp_trend
 from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import atomic_path, code_fingerprint, fingerprint, read_meta, write_parquet
+from pipeline.storage import code_fingerprint, fingerprint, item_files, read_meta, write_json, write_parquet
 
 SCHEMA_VERSION = 1
 CODE = code_fingerprint(pipeline.smoothing, pipeline.motion_qc)
@@ -50,9 +49,7 @@ def run(root: Path) -> None:
     params = stage_params(load_params(root / "params.yaml"), "smooth")
     lamb = float(params.get("lambda", 1.0))
     items = []
-    for src in sorted((root / POSE3D).glob("*.parquet")):
-        if src.name.startswith("_"):
-            continue
+    for src in item_files(root / POSE3D):
         inputs = {"pose3d": read_meta(src).get("fingerprint", "")}
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out = root / SMOOTH / src.name
@@ -63,8 +60,7 @@ def run(root: Path) -> None:
 
 def write_motion_metrics(root: Path) -> None:
     """metrics/smooth.json: frame-weighted means of the per-clip QC over every smoothed segment."""
-    qcs = [q for f in sorted((root / SMOOTH).glob("*.parquet")) if not f.name.startswith("_")
-           for q in read_meta(f).get("clip_qc", {}).values()]
+    qcs = [q for f in item_files(root / SMOOTH) for q in read_meta(f).get("clip_qc", {}).values()]
     frames = sum(q["frames"] for q in qcs)
 
     def mean(key: str) -> float:
@@ -73,8 +69,7 @@ def write_motion_metrics(root: Path) -> None:
     metrics = {"clips": len(qcs), "frames": frames, "mean_acc_before": mean("mean_acc_before"),
                "mean_acc_after": mean("mean_acc_after"), "limb_cv": mean("limb_cv"),
                "interpolated_share": mean("interpolated_share")}
-    with atomic_path(root / METRICS / "smooth.json") as tmp:
-        tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n")
+    write_json(root / METRICS / "smooth.json", metrics)
 
 
 def main() -> int:

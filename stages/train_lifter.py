@@ -5,7 +5,6 @@ The motion capture folder is ``train_lifter.mocap`` in params, or else $DANCE3D_
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import sys
@@ -16,7 +15,7 @@ from pipeline.errors import InputError
 from pipeline.params import load_params, stage_params
 from pipeline.paths import LIFTER, METRICS
 from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import atomic_path
+from pipeline.storage import atomic_path, write_json
 
 log = logging.getLogger("dance3d.train_lifter")
 
@@ -56,8 +55,7 @@ def run(root: Path) -> None:
     export_onnx(result.model, root / LIFTER, {"trained_on": ",".join(cfg.sources), "steps": len(result.losses)})
     log.info("held-out MPJPE %.1f mm, P-MPJPE %.1f mm (mean pose %.1f mm)", result.metrics["val_mpjpe_mm"],
              result.metrics["val_p_mpjpe_mm"], result.metrics["mean_pose_mpjpe_mm"])
-    with atomic_path(root / METRICS / "lifter.json") as tmp:
-        tmp.write_text(json.dumps(result.metrics, indent=2, sort_keys=True) + "\n")
+    write_json(root / METRICS / "lifter.json", result.metrics)
     every = max(1, len(result.losses) // 200)
     with atomic_path(root / METRICS / "lifter_loss.csv") as tmp:
         tmp.write_text("step,train_mpjpe_mm\n" + "".join(

@@ -33,6 +33,7 @@ from pipeline.manifests import (
 )
 from pipeline.paths import QC, TRACK_MANIFESTS, TRACKS
 from pipeline.proposals import ProposalOptions, propose, track_stats
+from pipeline.storage import item_files
 from pipeline.trackfile import load_tracks
 
 log = logging.getLogger(__name__)
@@ -57,8 +58,7 @@ class ReviewApp:
         return self.root / TRACKS / f"{seg_id}.parquet"
 
     def segments(self) -> list[str]:
-        folder = self.root / TRACKS
-        return sorted(p.stem for p in folder.glob("*.parquet") if not p.name.startswith("_")) if folder.exists() else []
+        return [p.stem for p in item_files(self.root / TRACKS)]
 
     def version(self, seg_id: str) -> str:
         path = self.manifest_path(seg_id)
