@@ -7,6 +7,8 @@ from pathlib import Path
 import pyarrow.parquet as pq
 
 from pipeline.failures import FAILURES_FILE
+from pipeline.paths import AUDIO_FEATURES, CLEAN, CORPUS, MOTION24, POSE2D, POSE3D, SMOOTH, TRACKS
+from pipeline.storage import item_files
 
 
 def summarise(root: Path) -> str:
@@ -34,6 +36,16 @@ def summarise(root: Path) -> str:
         lines.append(f"trim: {len(segs)} segments from {videos} videos, {minutes:.1f} min; {silent} without audio")
     else:
         lines.append("trim: not run yet")
+    for stage, folder in (("pose2d", POSE2D), ("track", TRACKS), ("clean", CLEAN), ("lift", POSE3D),
+                          ("smooth", SMOOTH), ("resample", MOTION24), ("audio", AUDIO_FEATURES)):
+        files = item_files(root / folder)
+        if files:
+            lines.append(f"{stage}: {len(files)} segments in {folder}")
+    for split in ("train", "val"):
+        shards = sorted((root / CORPUS / split).glob("shard-*.parquet"))
+        if shards:
+            windows = sum(pq.read_metadata(p).num_rows for p in shards)
+            lines.append(f"corpus {split}: {windows} windows in {len(shards)} shards")
     for failures in sorted((root / "data").glob(f"*/{FAILURES_FILE}")) if (root / "data").exists() else []:
         rows = pq.read_table(failures).to_pylist()
         if rows:
