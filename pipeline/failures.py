@@ -31,13 +31,26 @@ def now() -> str:
     return dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
 
 
-def write_failures(folder: Path, stage: str, failures: list[Failure]) -> Path:
-    """Write (or clear) the stage's failure table; always written so stale rows vanish."""
+def write_failures(folder: Path, stage: str, failures: list[Failure], total: int | None = None) -> Path:
+    """Write (or clear) the stage's failure table; always written so stale rows vanish.
+
+    With ``total`` (the stage's item count) a summary also goes to
+    ``metrics/failures_<stage>.json`` of the project (``folder`` is ``<project>/data/<stage>``).
+    """
     columns = ["item", "stage", "error_class", "message", "time"]
     rows = [asdict(f) for f in sorted(failures, key=lambda f: f.item)]
     table = pa.table({c: pa.array([r[c] for r in rows], pa.string()) for c in columns})
     path = Path(folder) / FAILURES_FILE
     write_parquet(table, path, schema_version=1, extra={"stage": stage})
+    if total is not None:
+        from pipeline.storage import write_json
+
+        by_class: dict[str, int] = {}
+        for f in failures:
+            by_class[f.error_class] = by_class.get(f.error_class, 0) + 1
+        write_json(Path(folder).parent.parent / "metrics" / f"failures_{stage}.json",
+                   {"items": total, "failed": len(failures),
+                    "failed_share": round(len(failures) / total, 4) if total else 0.0, "by_error_class": by_class})
     return path
 
 

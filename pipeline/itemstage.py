@@ -97,7 +97,7 @@ def run_item_stage(
             report.failures.append(Failure(item.item_id, stage, outcome.error_class, outcome.error_message, now()))
             log.warning("%s: %s: %s", item.item_id, outcome.error_class, outcome.error_message)
     failures = kept_failures + report.failures
-    write_failures(out_dirs[0], stage, failures)
+    write_failures(out_dirs[0], stage, failures, total=len(items))
     check_failure_ratio(stage, len(failures), len(items), float(params.get("max_failure_ratio", 0.2)))
     return report
 

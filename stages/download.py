@@ -106,7 +106,7 @@ def run(root: Path) -> None:
         _write_ledger(raw_dir, sources, rows, params)  # after every item: nothing done is lost
     _write_ledger(raw_dir, sources, rows, params)
     shutil.rmtree(raw_dir / ".incoming", ignore_errors=True)
-    write_failures(raw_dir, "download", failures)
+    write_failures(raw_dir, "download", failures, total=len(sources))
     ok = sum(1 for r in rows.values() if r["status"] == "ok")
     log.info("ledger: %d ok, %d failed, of %d sources", ok, len(failures), len(sources))
     if stop.is_set():

@@ -89,7 +89,7 @@ def run(root: Path) -> None:
     ordered = [rows[s.segment_id] for s in plan if s.segment_id in rows]
     write_parquet(pa.Table.from_pylist(ordered, schema=INDEX_SCHEMA), seg_dir / INDEX,
                   schema_version=SCHEMA_VERSION, params=params)
-    write_failures(seg_dir, "trim", failures)
+    write_failures(seg_dir, "trim", failures, total=len(plan))
     log.info("index: %d segments, %d failed", len(ordered), len(failures))
     check_failure_ratio("trim", len(failures), len(plan), float(params.get("max_failure_ratio", 0.2)))
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import http.server
+import json
 import threading
 from pathlib import Path
 from typing import Iterator
@@ -69,6 +70,9 @@ def test_missing_file_and_malformed_url_are_failed_rows_not_crashes(project: Pat
         "sources.csv:4: url 'htp:/nowhere' has unsupported scheme 'htp' (use http, https or file)")
     failures = pq.read_table(project / "data/raw/_failures.parquet").to_pylist()
     assert [f["item"] for f in failures] == ["manifests/sources.csv:3", "manifests/sources.csv:4"]
+    summary = json.loads((project / "metrics/failures_download.json").read_text())
+    assert summary == {"items": 3, "failed": 2, "failed_share": 0.6667,
+                       "by_error_class": {"not_found": 1, "invalid_url": 1}}
 
 
 def test_stage_fails_past_the_failure_ratio_but_keeps_what_it_did(project: Path, media_dir: Path) -> None:

@@ -80,6 +80,8 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     assert (root / "models/tsmt.pt").exists() and json.loads((root / "metrics/train.json").read_text())["steps"] == 40
     metrics = _dvc(root, "metrics", "show")
     assert metrics.returncode == 0 and "val_mpjpe_mm" in metrics.stdout and "windows_train" in metrics.stdout
+    assert "failed_share" in metrics.stdout
+    assert json.loads((root / "metrics/failures_pose2d.json").read_text())["failed"] == 0
     plots = _dvc(root, "plots", "show", "-o", str(tmp_path / "plots"))
     assert plots.returncode == 0, plots.stderr[-2000:]
     assert (tmp_path / "plots/index.html").exists()
