@@ -9,7 +9,6 @@ own presentation time, so variable-frame-rate input keeps correct timestamps.
 from __future__ import annotations
 
 import logging
-import os
 import subprocess
 from dataclasses import asdict, dataclass
 from fractions import Fraction
@@ -61,11 +60,6 @@ def ffmpeg_exe() -> str:
     import imageio_ffmpeg
 
     return imageio_ffmpeg.get_ffmpeg_exe()
-
-
-def ffmpeg_env() -> dict[str, str]:
-    """Environment for tools that look for ffmpeg themselves (ffmpeg-normalize)."""
-    return {**os.environ, "FFMPEG_PATH": ffmpeg_exe()}
 
 
 def run_ffmpeg(args: Sequence[str], *, subject: str | Path) -> None:

@@ -6,16 +6,16 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 
+from pipeline.catalog import read_index, read_ledger
 from pipeline.failures import FAILURES_FILE
-from pipeline.paths import AUDIO_FEATURES, CLEAN, CORPUS, MOTION24, POSE2D, POSE3D, SMOOTH, TRACKS
+from pipeline.paths import AUDIO_FEATURES, CLEAN, CORPUS, MOTION24, POSE2D, POSE3D, RAW, SEGMENTS, SMOOTH, TRACKS
 from pipeline.storage import item_files
 
 
 def summarise(root: Path) -> str:
     lines: list[str] = []
-    ledger = root / "data/raw/ledger.parquet"
-    if ledger.exists():
-        rows = pq.read_table(ledger).to_pylist()
+    rows = list(read_ledger(root / RAW).values())
+    if rows:
         counts: dict[str, int] = {}
         for r in rows:
             counts[r["status"]] = counts.get(r["status"], 0) + 1
@@ -27,9 +27,8 @@ def summarise(root: Path) -> str:
                 lines.append(f"  {r['status']:9} {r['video_id'] or '-':20} {r['error_class']}: {r['error_message']}")
     else:
         lines.append("download: not run yet (dance3d run download, or dvc repro)")
-    index = root / "data/segments/index.parquet"
-    if index.exists():
-        segs = pq.read_table(index).to_pylist()
+    segs = list(read_index(root / SEGMENTS).values())
+    if segs:
         minutes = sum(s["frames"] / s["fps"] for s in segs) / 60
         videos = len({s["video_id"] for s in segs})
         silent = sum(1 for s in segs if not s["has_audio"])

@@ -33,9 +33,6 @@ class SegmentTracks:
     def ids(self) -> list[int]:
         return sorted(int(t) for t in np.unique(self.track_id) if t >= 0)
 
-    def frame_time(self, frame: int) -> float:
-        return frame / self.fps
-
 
 def load_tracks(path: Path) -> SegmentTracks:
     table = pq.read_table(path)

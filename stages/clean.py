@@ -11,11 +11,11 @@ import pyarrow.parquet as pq
 import pipeline.clean
 import pipeline.manifests
 import pipeline.proposals
-from pipeline.annotation import proposal_options, tracked_segments
+from pipeline.annotation import check_manifests, proposal_options, tracked_segments
 from pipeline.clean import SCHEMA_VERSION, CleanOptions, apply_manifest, clips_table
 from pipeline.errors import InputError, InputErrors
 from pipeline.itemstage import WorkItem, run_item_stage
-from pipeline.manifests import check_manifest_file
+from pipeline.manifests import parse_manifest
 from pipeline.params import load_params, stage_params
 from pipeline.paths import CLEAN, METRICS, TRACK_MANIFESTS, TRACKS
 from pipeline.proposals import propose
@@ -39,8 +39,8 @@ CODE = code_fingerprint(pipeline.clean, pipeline.manifests, pipeline.proposals)
 def clean_segment(job: tuple) -> dict:
     tracks_file, manifest, out, opts, proposal_opts, params, inputs, fp = job
     tracks = load_tracks(tracks_file)
-    if manifest is not None:
-        spans, _ = check_manifest_file(manifest, tracks_file.parent, opts.min_clip_seconds)
+    if manifest is not None:  # already checked by the stage before any work was handed out
+        spans, _ = parse_manifest(manifest)
         source = "manifest"
     else:
         spans, source = propose(tracks, proposal_opts), "proposal"
@@ -65,7 +65,7 @@ def run(root: Path) -> None:
         raise InputError(root / "params.yaml", f"clean.unannotated must be one of {UNANNOTATED}, not {policy!r}")
     proposal_opts = proposal_options(all_params)
     segments = tracked_segments(root)
-    _refuse_invalid_manifests(root, segments, opts.min_clip_seconds)
+    _refuse_invalid_manifests(root, opts.min_clip_seconds)
     items, skipped = [], []
     for seg_id in segments:
         tracks_file = root / TRACKS / f"{seg_id}.parquet"
@@ -88,16 +88,14 @@ def run(root: Path) -> None:
     _write_metrics(root, skipped)
 
 
-def _refuse_invalid_manifests(root: Path, segments: list[str], min_clip_seconds: float) -> None:
-    """The clean stage runs the checker's checks and refuses invalid manifests, naming them."""
-    folder = root / TRACK_MANIFESTS
+def _refuse_invalid_manifests(root: Path, min_clip_seconds: float) -> None:
+    """The clean stage runs `dance3d manifests check` and refuses invalid manifests, naming them."""
     errors: list[InputError] = []
-    for path in sorted(folder.glob("*.csv")) if folder.exists() else []:
-        for problem in check_manifest_file(path, root / TRACKS, min_clip_seconds)[1]:
-            if problem.warning:
-                log.warning("%s", problem)
-            else:
-                errors.append(InputError(problem.path, problem.message, problem.line))
+    for problem in check_manifests(root, None, min_clip_seconds):
+        if problem.warning:
+            log.warning("%s", problem)
+        else:
+            errors.append(InputError(problem.path, problem.message, problem.line))
     if errors:
         for error in errors:
             log.error("%s", error)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import logging
 import shutil
 import sys
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +15,7 @@ import pyarrow.parquet as pq
 from pipeline.card import channel_stats, durations_csv, histogram_png, render_card
 from pipeline.catalog import read_index, read_ledger
 from pipeline.corpus import SCHEMA_VERSION, Window, split_of, window_starts, windows_table
+from pipeline.ids import video_id_of_segment
 from pipeline.motionfile import read_clips
 from pipeline.params import load_params, stage_params
 from pipeline.paths import AUDIO_FEATURES, CLEAN, CORPUS, METRICS, MOTION24, RAW, SEGMENTS, TRACKS
@@ -103,19 +105,24 @@ def run(root: Path) -> None:
 def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, params: dict, window: int,
                            hop: int) -> None:
     ledger = list(read_ledger(root / RAW).values())
-    segments = list(read_index(root / SEGMENTS).values())
+    index = read_index(root / SEGMENTS)
+    segments = list(index.values())
+
+    def video_of(seg_id: str) -> str:
+        return index[seg_id]["video_id"] if seg_id in index else video_id_of_segment(seg_id)
+
     track_ids: dict[str, int] = {}
     for f in item_files(root / TRACKS):
-        video = segments_video(segments, f.stem)
+        video = video_of(f.stem)
         track_ids[video] = track_ids.get(video, 0) + len(load_tracks(f).ids)
     clip_minutes: dict[str, float] = {}
     clip_seconds: list[float] = []
     for f in item_files(root / CLEAN):
         fps = read_meta(f)["fps"]
-        ids = pq.read_table(f, columns=["clip_id"]).column("clip_id").to_pylist()
-        video = segments_video(segments, f.stem)
-        clip_minutes[video] = clip_minutes.get(video, 0.0) + len(ids) / fps / 60
-        clip_seconds.extend(ids.count(c) / fps for c in dict.fromkeys(ids))
+        frames_per_clip = Counter(pq.read_table(f, columns=["clip_id"]).column("clip_id").to_pylist())
+        video = video_of(f.stem)
+        clip_minutes[video] = clip_minutes.get(video, 0.0) + sum(frames_per_clip.values()) / fps / 60
+        clip_seconds.extend(n / fps for n in frames_per_clip.values())
     metas = [w.meta for w in windows]
     stats = channel_stats(ledger, segments, track_ids, clip_minutes, metas)
     n_train = sum(1 for m in metas if m["split"] == "train")
@@ -142,13 +149,6 @@ def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, para
                "windows_val": totals["windows_val"], "clips": counts["clips"],
                "clips_without_audio": counts["clips_without_audio"], "clips_too_short": counts["clips_too_short"]}
     write_json(root / METRICS / "corpus.json", metrics)
-
-
-def segments_video(segments: list[dict], seg_id: str) -> str:
-    for s in segments:
-        if s["segment_id"] == seg_id:
-            return s["video_id"]
-    return seg_id.rsplit("_", 1)[0]
 
 
 def main() -> int:

@@ -19,14 +19,18 @@ from pipeline.media import ffmpeg_exe
 PROJECT = Path(__file__).resolve().parents[1]
 
 
+def skip_or_fail(reason: str) -> None:
+    """Skip a test whose real assets are missing here; in CI (DANCE3D_REQUIRE_ASSETS=1) fail it."""
+    if os.environ.get("DANCE3D_REQUIRE_ASSETS") == "1":
+        pytest.fail(reason + "; DANCE3D_REQUIRE_ASSETS=1 forbids skipping")
+    pytest.skip(reason)
+
+
 def _asset_dir(variable: str, must_contain: str) -> Path:
     value = os.environ.get(variable)
     path = Path(value) if value else None
     if path is None or not (path / must_contain).exists():
-        reason = f"{variable} is not set or lacks {must_contain} (point it at the real assets)"
-        if os.environ.get("DANCE3D_REQUIRE_ASSETS") == "1":
-            pytest.fail(reason + "; DANCE3D_REQUIRE_ASSETS=1 forbids skipping")
-        pytest.skip(reason)
+        skip_or_fail(f"{variable} is not set or lacks {must_contain} (point it at the real assets)")
     return path
 
 

@@ -14,7 +14,7 @@ import pytest
 
 from pipeline.proposals import ProposalOptions
 from pipeline.review.server import ReviewApp, serve
-from tests.conftest import PROJECT, make_test_video
+from tests.conftest import PROJECT, make_test_video, skip_or_fail
 from tests.test_annotation import write_tracks
 
 
@@ -127,10 +127,7 @@ def _chromium():
 
     binary, driver = Path("/usr/bin/chromium"), Path("/usr/bin/chromedriver")
     if not (binary.exists() and driver.exists()):
-        reason = "Chromium and chromedriver are not installed (Debian: apt-get install chromium chromium-driver)"
-        if os.environ.get("DANCE3D_REQUIRE_ASSETS") == "1":
-            pytest.fail(reason + "; DANCE3D_REQUIRE_ASSETS=1 forbids skipping")
-        pytest.skip(reason)
+        skip_or_fail("Chromium and chromedriver are not installed (Debian: apt-get install chromium chromium-driver)")
     options = webdriver.ChromeOptions()
     options.binary_location = str(binary)
     for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",

@@ -78,11 +78,12 @@ class ReviewApp:
         return [{"line": p.line, "warning": p.warning, "message": p.message,
                  "text": str(p).replace(str(path), shown)} for p in found]
 
-    def status(self, seg_id: str) -> dict:
+    def status(self, seg_id: str, problems: list[dict] | None = None) -> dict:
         path = self.manifest_path(seg_id)
         if not path.exists():
             return {"id": seg_id, "status": "unannotated", "errors": 0}
-        errors = sum(1 for p in self.problems(seg_id) if not p["warning"])
+        problems = self.problems(seg_id) if problems is None else problems
+        errors = sum(1 for p in problems if not p["warning"])
         if path.read_text() == self.proposal_text(seg_id):
             state = "proposal"
         else:
@@ -101,7 +102,7 @@ class ReviewApp:
         return {
             "id": seg_id, "fps": tracks.fps, "duration": tracks.frames_total / tracks.fps,
             "width": tracks.width, "height": tracks.height, "has_manifest": path.exists(),
-            "version": self.version(seg_id), "status": self.status(seg_id)["status"],
+            "version": self.version(seg_id), "status": self.status(seg_id, problems)["status"],
             "tracks": [{"id": s.track_id, "start": s.start, "end": s.end, "frames": s.frames} for s in stats],
             "rows": [_row(s) for s in spans], "problems": problems,
         }
