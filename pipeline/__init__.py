@@ -4,4 +4,9 @@ Every piece of logic lives in this package and is testable alone; the modules in
 ``stages/`` are thin DVC entry points around it.
 """
 
+from pipeline.numba_cache import claim_slot
+
 __version__ = "0.1.0"
+
+# Before anything imports numba (librosa, the HP filter): a numba cache of this process's own.
+claim_slot()
