@@ -8,12 +8,19 @@ by ``initializer``, not once per item.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import logging
 import multiprocessing as mp
+import os
+import signal
 import traceback
 from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Iterator, Sequence
 
 from tqdm import tqdm
+
+from pipeline import numba_cache
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -26,6 +33,10 @@ class Outcome:
     @property
     def ok(self) -> bool:
         return not self.error_class
+
+
+def _label(item: Any) -> str:
+    return str(getattr(item, "item_id", item))
 
 
 def _call(fn: Callable[[Any], Any], item: Any) -> Outcome:
@@ -75,20 +86,58 @@ def _run_ray(fn, items, workers, initializer, initargs, options: dict, gpu: bool
                 yield ray.get(done[0])
             except ray.exceptions.RayActorError:
                 yield Outcome(item, error_class="WorkerCrashed",
-                              error_message="the Ray worker died (crash or out of memory) on this item")
+                              error_message="the Ray worker died (a crash in native code or out of memory)")
     finally:
         for actor in actors:
             ray.kill(actor)
 
 
-def _isolated(fn: Callable[[Any], Any], item: Any, initializer, initargs: tuple) -> Outcome:
-    with cf.ProcessPoolExecutor(1, mp_context=mp.get_context("spawn"), initializer=initializer,
-                                initargs=initargs) as pool:
+def crash_message(exitcode: int | None) -> str:
+    """Why a worker process died, from its exit code, in words a user can act on."""
+    if exitcode is not None and exitcode < 0:
         try:
-            return pool.submit(_call, fn, item).result()
-        except cf.process.BrokenProcessPool:
-            return Outcome(item, error_class="WorkerCrashed",
-                           error_message="the worker process died (crash or out of memory) on this item")
+            name = signal.Signals(-exitcode).name
+        except ValueError:
+            name = f"signal {-exitcode}"
+        why = {"SIGKILL": "killed, usually by the out-of-memory killer",
+               "SIGSEGV": "a crash in native code", "SIGABRT": "aborted by native code",
+               "SIGBUS": "a crash in native code"}.get(name, "killed")
+        return f"the worker process died from {name} (signal {-exitcode}: {why})"
+    return f"the worker process exited with code {exitcode} before returning a result"
+
+
+def _isolated_child(conn, fn: Callable[[Any], Any], item: Any, initializer, initargs: tuple) -> None:
+    if initializer is not None:
+        initializer(*initargs)
+    conn.send(_call(fn, item))
+    conn.close()
+
+
+def _isolated(fn: Callable[[Any], Any], item: Any, initializer, initargs: tuple) -> Outcome:
+    """Run one item alone in a new process with an empty numba cache, so neither a neighbour
+    nor a corrupted compilation cache can fail it; a crash here is the item's own."""
+    ctx = mp.get_context("spawn")
+    receive, send = ctx.Pipe(duplex=False)
+    process = ctx.Process(target=_isolated_child, args=(send, fn, item, initializer, initargs), daemon=True)
+    previous = os.environ.get(numba_cache.ENV_FRESH)
+    os.environ[numba_cache.ENV_FRESH] = "1"  # inherited by the child at start
+    try:
+        process.start()
+    finally:
+        if previous is None:
+            os.environ.pop(numba_cache.ENV_FRESH, None)
+        else:
+            os.environ[numba_cache.ENV_FRESH] = previous
+    send.close()
+    try:
+        outcome = receive.recv()
+    except EOFError:  # the child died without answering
+        outcome = None
+    process.join()
+    if outcome is not None:
+        return outcome
+    return Outcome(item, error_class="WorkerCrashed",
+                   error_message=crash_message(process.exitcode) + ", also when run alone in a fresh process")
 
 
 def run_items(
@@ -149,8 +198,14 @@ def run_items(
             finally:
                 for future in futures:
                     future.cancel()
+        if crashed:
+            log.warning("a worker process died; retrying %d unfinished item(s) one at a time in fresh processes",
+                        len(crashed))
         for item in crashed:  # alone in a fresh process each: only the real culprit fails
+            outcome = _isolated(fn, item, initializer, tuple(initargs))
+            if outcome.ok:
+                log.warning("%s: finished when retried alone", _label(item))
             bar.update()
-            yield _isolated(fn, item, initializer, tuple(initargs))
+            yield outcome
     finally:
         bar.close()

@@ -93,9 +93,17 @@ def run_item_stage(
         item: WorkItem = outcome.item
         if outcome.ok:
             report.done[item.item_id] = outcome.value
-        else:
-            report.failures.append(Failure(item.item_id, stage, outcome.error_class, outcome.error_message, now()))
-            log.warning("%s: %s: %s", item.item_id, outcome.error_class, outcome.error_message)
+            continue
+        message = outcome.error_message
+        if outcome.error_class == "WorkerCrashed":
+            message += f"; after fixing the cause, re-run only the failed items with `dance3d retry {stage}`"
+        report.failures.append(Failure(item.item_id, stage, outcome.error_class, message, now()))
+        log.warning("%s: %s: %s: %s", stage, item.item_id, outcome.error_class, message)
+    crashed = sorted(f.item for f in report.failures if f.error_class == "WorkerCrashed")
+    if report.failures:
+        log.warning("%s: %d of %d items failed%s; see %s/_failures.parquet, then `dance3d retry %s`", stage,
+                    len(report.failures), len(todo), f" (worker crashed: {', '.join(crashed)})" if crashed else "",
+                    out_dirs[0], stage)
     failures = kept_failures + report.failures
     write_failures(out_dirs[0], stage, failures, total=len(items))
     check_failure_ratio(stage, len(failures), len(items), float(params.get("max_failure_ratio", 0.2)))

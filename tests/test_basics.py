@@ -85,3 +85,28 @@ def test_a_crashing_worker_fails_only_its_own_item() -> None:
     outcomes = {o.item: o for o in run_items(_crash_on_three, [1, 2, 3, 4, 5], workers=2)}
     assert {i: o.value for i, o in outcomes.items() if o.ok} == {1: 10, 2: 20, 4: 40, 5: 50}
     assert outcomes[3].error_class == "WorkerCrashed"
+
+
+def _segfault_on_b(x: str) -> str:
+    if x == "b":
+        import os
+        import signal
+
+        os.kill(os.getpid(), signal.SIGSEGV)  # what a native library fault does to the worker
+    return x
+
+
+def test_a_crashed_worker_names_its_item_the_signal_and_the_retry_command(tmp_path: Path, caplog) -> None:
+    from pipeline.itemstage import WorkItem, run_item_stage
+
+    out = tmp_path / "out"
+    items = [WorkItem(i, "fp", (out / f"{i}.parquet",), i) for i in "abc"]
+    with caplog.at_level("WARNING"):
+        report = run_item_stage("demo", items, _segfault_on_b, out_dirs=[out],
+                                params={"workers": 2, "max_failure_ratio": 1.0})
+    assert sorted(report.done) == ["a", "c"]
+    (failure,) = report.failures
+    assert failure.item == "b" and failure.error_class == "WorkerCrashed"
+    assert "SIGSEGV" in failure.message and "also when run alone" in failure.message
+    assert "`dance3d retry demo`" in failure.message
+    assert "worker crashed: b" in caplog.text
