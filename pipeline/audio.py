@@ -29,13 +29,35 @@ OUTPUT_SR = 44100
 class LoudnessOptions:
     target_lufs: float = -23.0
     true_peak: float = -2.0
-    loudness_range: float = 7.0
+    loudness_range: float = 7.0  # only a floor: a wider input range is kept (linear gain, never compression)
 
 
-def normalise_loudness(src: Path, out: Path, opts: LoudnessOptions, audio_stream: int | None = None) -> None:
-    """EBU R128 two-pass normalisation with ffmpeg-normalize to 44.1 kHz 16-bit WAV.
+@dataclass(frozen=True)
+class LoudnessReport:
+    """What normalisation did to one file (EBU R128 figures from ffmpeg's loudnorm)."""
 
-    ``audio_stream`` selects the stream explicitly (files may carry cover art or several tracks).
+    input_i: float      # integrated loudness, LUFS
+    input_lra: float    # loudness range, LU
+    input_tp: float     # true peak, dBTP
+    output_i: float
+    output_lra: float
+    output_tp: float
+    mode: str           # "linear" (one gain for the whole file) or "dynamic"
+    target_i: float     # the target actually used: lower than asked when the true-peak ceiling limits the gain
+    peak_limited: bool  # the gain was limited by the true-peak ceiling, so output_i is below the asked target
+
+    def as_dict(self) -> dict:
+        return {k: (round(v, 2) if isinstance(v, float) else v) for k, v in self.__dict__.items()}
+
+
+def normalise_loudness(src: Path, out: Path, opts: LoudnessOptions, audio_stream: int | None = None) -> LoudnessReport:
+    """EBU R128 two-pass *linear* normalisation with ffmpeg-normalize to 44.1 kHz 16-bit WAV.
+
+    Linear on purpose: dynamic mode compresses the music, which changes onset strengths
+    and therefore beats. A loudness range above ``opts.loudness_range`` is kept, and when
+    the true-peak ceiling does not allow the full gain, the target is lowered (and the
+    report says so) instead of compressing. ``audio_stream`` selects the stream
+    explicitly (files may carry cover art or several tracks).
     """
     from ffmpeg_normalize import FFmpegNormalize
 
@@ -43,7 +65,8 @@ def normalise_loudness(src: Path, out: Path, opts: LoudnessOptions, audio_stream
     with atomic_path(Path(out)) as tmp:
         normaliser = FFmpegNormalize(
             normalization_type="ebu", target_level=opts.target_lufs, true_peak=opts.true_peak,
-            loudness_range_target=opts.loudness_range, sample_rate=OUTPUT_SR, audio_codec="pcm_s16le",
+            loudness_range_target=opts.loudness_range, keep_lra_above_loudness_range_target=True,
+            auto_lower_loudness_target=True, dynamic=False, sample_rate=OUTPUT_SR, audio_codec="pcm_s16le",
             video_disable=True, subtitle_disable=True, metadata_disable=True, chapters_disable=True,
             audio_streams=[audio_stream] if audio_stream is not None else None, output_format="wav",
             extension="wav", keep_bit_depth=False)
@@ -52,6 +75,18 @@ def normalise_loudness(src: Path, out: Path, opts: LoudnessOptions, audio_stream
             normaliser.run_normalization()
         except Exception as exc:  # ffmpeg-normalize raises its own error types
             raise MediaError(src, f"loudness normalisation failed: {exc}") from None
+        stats = [s for s in normaliser.media_files[0].get_stats()]
+    if not stats or not stats[0].get("ebu_pass1") or not stats[0].get("ebu_pass2"):
+        raise MediaError(src, "loudness normalisation gave no EBU R128 statistics")
+    first, second = stats[0]["ebu_pass1"], stats[0]["ebu_pass2"]
+    input_i, input_tp = float(first["input_i"]), float(first["input_tp"])
+    # the same rule as ffmpeg-normalize's auto_lower_loudness_target, to report what was used
+    target = min(opts.target_lufs, input_i - input_tp + opts.true_peak - 0.1)
+    return LoudnessReport(
+        input_i=input_i, input_lra=float(first["input_lra"]), input_tp=input_tp,
+        output_i=float(second["output_i"]), output_lra=float(second["output_lra"]),
+        output_tp=float(second["output_tp"]), mode=str(second.get("normalization_type", "")),
+        target_i=round(target, 2), peak_limited=bool(target < opts.target_lufs))
 
 
 @dataclass

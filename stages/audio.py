@@ -18,7 +18,7 @@ from pipeline.itemstage import WorkItem, run_item_stage
 from pipeline.params import load_params, stage_params
 from pipeline.paths import AUDIO, AUDIO_FEATURES, METRICS, SEGMENTS
 from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import code_fingerprint, fingerprint, write_json, write_parquet
+from pipeline.storage import code_fingerprint, fingerprint, item_files, read_meta, write_json, write_parquet
 
 log = logging.getLogger("dance3d.audio")
 SCHEMA_VERSION = 1
@@ -42,14 +42,15 @@ def features_table(f) -> pa.Table:
 
 def audio_segment(job: tuple) -> dict:
     wav, out_wav, out_features, opts, extra_sets, params, inputs, fp = job
-    normalise_loudness(wav, out_wav, opts)
+    loudness = normalise_loudness(wav, out_wav, opts)
     features = compute_features(load_for_features(out_wav), tuple(extra_sets))
     extra = {"fingerprint": fp, "segment_id": out_features.stem, "fps": FPS, "tempo": features.tempo,
+             "loudness": loudness.as_dict(),
              "beat_times": [round(t, 6) for t in features.beat_times],
              "alignment": "frame k is centred at k/24 s: audio resampled to 12288 Hz, hop 512, centred frames"}
     write_parquet(features_table(features), out_features, schema_version=SCHEMA_VERSION, params=params,
                   inputs=inputs, extra=extra)
-    return {"frames": features.frames, "tempo": features.tempo}
+    return {"frames": features.frames, "tempo": features.tempo, "loudness": loudness.as_dict()}
 
 
 def run(root: Path) -> None:
@@ -71,8 +72,18 @@ def run(root: Path) -> None:
     if silent:
         log.info("%d segments have no audio track and are left out downstream: %s", len(silent), ", ".join(silent))
     run_item_stage("audio", items, audio_segment, out_dirs=[root / AUDIO_FEATURES, root / AUDIO], params=params)
+    loudness = {}
+    for path in item_files(root / AUDIO_FEATURES):
+        loudness[path.stem] = read_meta(path).get("loudness", {})
+    limited = sorted(seg for seg, lo in loudness.items() if lo.get("peak_limited"))
+    if limited:
+        log.info("true-peak ceiling limited the gain (output quieter than the target, never compressed): %s",
+                 ", ".join(limited))
     write_json(root / METRICS / "audio.json",
-               {"segments_with_audio": len(items), "segments_without_audio": sorted(silent)})
+               {"segments_with_audio": len(items), "segments_without_audio": sorted(silent),
+                "loudness_mode": {m: sum(1 for lo in loudness.values() if lo.get("mode") == m)
+                                  for m in sorted({lo.get("mode", "") for lo in loudness.values()})},
+                "peak_limited": limited, "loudness": loudness})
 
 
 def main() -> int:

@@ -10,6 +10,7 @@ import pytest
 import soundfile as sf
 
 from pipeline.audio import FEATURE_SR, FPS, LoudnessOptions, compute_features, normalise_loudness
+from tests.conftest import ffmpeg
 
 
 def click_track(bpm: float, seconds: float, sr: int = FEATURE_SR, first: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
@@ -80,3 +81,46 @@ def test_cover_art_stream_is_ignored(tmp_path: Path, media_dir: Path) -> None:
     normalise_loudness(media_dir / "music/music_vibe_ace_kevin_macleod.ogg", out, LoudnessOptions(), audio_stream=0)
     info = sf.info(out)
     assert info.samplerate == 44100 and info.duration == pytest.approx(61.46, abs=0.1)
+
+
+def ebur128(path: Path) -> dict[str, float]:
+    """Integrated loudness (I, LUFS) and loudness range (LRA, LU), measured by ffmpeg's ebur128."""
+    import re
+    import subprocess
+
+    from pipeline.media import ffmpeg_exe
+
+    log = subprocess.run([ffmpeg_exe(), "-hide_banner", "-nostats", "-i", str(path), "-af", "ebur128", "-f", "null",
+                          "-"], capture_output=True, text=True, check=True).stderr
+    summary = log[log.rindex("Summary:"):]
+    return {key: float(re.search(rf"{key}:\s+(-?[\d.]+)", summary).group(1)) for key in ("I", "LRA")}
+
+
+def test_a_wide_loudness_range_is_kept_linear_not_compressed(tmp_path: Path, media_dir: Path) -> None:
+    # 15 s of music at full level, then the next 15 s 20 dB quieter: LRA far above the 7 LU target
+    wide = tmp_path / "wide.wav"
+    ffmpeg("-i", str(media_dir / "music/music_vibe_ace_kevin_macleod.ogg"), "-map", "0:a", "-t", "30", "-af",
+           "volume='if(lt(t,15),1,0.1)':eval=frame", "-ar", "44100", str(wide))
+    before = ebur128(wide)
+    assert before["LRA"] > 14
+    report = normalise_loudness(wide, tmp_path / "out.wav", LoudnessOptions(target_lufs=-23.0, loudness_range=7.0))
+    after = ebur128(tmp_path / "out.wav")
+    assert report.mode == "linear"
+    assert after["LRA"] == pytest.approx(before["LRA"], abs=1.0)
+    if report.peak_limited:  # the metrics say why the target was not reached
+        assert after["I"] == pytest.approx(report.target_i, abs=1.0) and report.target_i < -23.0
+    else:
+        assert after["I"] == pytest.approx(-23.0, abs=1.0)
+
+
+def test_a_gain_limited_by_the_true_peak_is_reported_not_compressed(tmp_path: Path, media_dir: Path) -> None:
+    # a quiet clip with one loud click: reaching -14 LUFS linearly would push the click past -2 dBTP
+    quiet = tmp_path / "quiet.wav"
+    ffmpeg("-i", str(media_dir / "music/music_vibe_ace_kevin_macleod.ogg"), "-map", "0:a", "-t", "20", "-af",
+           "volume=0.05", "-ar", "44100", str(quiet))
+    y, sr = sf.read(quiet)
+    y[sr * 5: sr * 5 + 200] = 0.9
+    sf.write(quiet, y, sr)
+    report = normalise_loudness(quiet, tmp_path / "out.wav", LoudnessOptions(target_lufs=-14.0, true_peak=-2.0))
+    assert report.mode == "linear" and report.peak_limited and report.target_i < -14.0
+    assert ebur128(tmp_path / "out.wav")["I"] == pytest.approx(report.target_i, abs=1.0)
