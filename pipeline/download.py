@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import logging
 import re
@@ -22,6 +23,7 @@ from pipeline.storage import sha256_file
 log = logging.getLogger(__name__)
 
 STATUSES = ("ok", "failed", "throttled", "skipped")
+_MEDIA_SUFFIXES = {".mp4", ".mkv", ".webm", ".mov", ".avi", ".m4v", ".flv", ".ogg", ".ogv", ".mp3", ".wav", ".m4a"}
 
 _EMPTY = re.compile(r"Did not get any data blocks|downloaded file is empty", re.I)
 _RATE_LIMIT = re.compile(r"HTTP Error 429|Too Many Requests|Sign in to confirm|rate.?limit", re.I)
@@ -111,6 +113,19 @@ class _YtdlpLog:
         log.debug("yt-dlp: %s", msg)
 
 
+def local_copies(folder: Path | None, wanted: set[str]) -> dict[str, Path]:
+    """Files under ``folder`` whose sha256 is in ``wanted``: sha256 -> path (a local mirror of sources)."""
+    found: dict[str, Path] = {}
+    if not folder or not wanted or not Path(folder).is_dir():
+        return found
+    for path in sorted(Path(folder).rglob("*")):
+        if path.is_file() and path.suffix.lower() in _MEDIA_SUFFIXES:
+            digest = sha256_file(path)
+            if digest in wanted:
+                found.setdefault(digest, path)
+    return found
+
+
 def staging_dir(raw_dir: Path, url: str) -> Path:
     return raw_dir / ".incoming" / hashlib.sha256(url.encode()).hexdigest()[:16]
 
@@ -138,11 +153,13 @@ def _ytdlp_options(dest: Path, opts: DownloadOptions) -> dict[str, Any]:
 
 
 def download_source(source: Source, raw_dir: Path, opts: DownloadOptions,
-                    taken_ids: set[str] = frozenset()) -> LedgerRow:
+                    taken_ids: set[str] = frozenset(), local_copy: Path | None = None) -> LedgerRow:
     """Download ``source`` into ``raw_dir`` as ``<video_id>.<ext>`` + ``<video_id>.info.json``.
 
-    Never raises for a bad source: the returned row says what went wrong. Raises
-    RateLimitedError when the site throttles us, so the caller can stop politely.
+    ``local_copy``: a local file with the source's sha256, fetched instead of the network
+    (the ledger still names the source's URL). A source with a sha256 whose download has
+    another checksum fails. Never raises for a bad source: the returned row says what
+    went wrong. Raises RateLimitedError when the site throttles us, so the caller can stop politely.
     """
     row = LedgerRow(url=source.url, video_id=source.video_id or "", status="failed",
                     channel=source.channel, licence=source.licence, style=source.style)
@@ -151,13 +168,15 @@ def download_source(source: Source, raw_dir: Path, opts: DownloadOptions,
         return row
     stage = staging_dir(raw_dir, source.url)
     info: dict[str, Any] | None = None
+    url = local_copy.absolute().as_uri() if local_copy else source.url
+    ytdlp_opts = dataclasses.replace(opts, allow_file_urls=True) if local_copy else opts
     for attempt in range(1, max(1, opts.retries) + 1):
         row.attempts = attempt
         shutil.rmtree(stage, ignore_errors=True)
         stage.mkdir(parents=True)
         try:
-            with yt_dlp.YoutubeDL(_ytdlp_options(stage, opts)) as ydl:
-                info = ydl.extract_info(source.url, download=True)
+            with yt_dlp.YoutubeDL(_ytdlp_options(stage, ytdlp_opts)) as ydl:
+                info = ydl.extract_info(url, download=True)
             break
         except Exception as exc:  # yt-dlp raises several unrelated types
             message = _clean(str(exc))
@@ -173,16 +192,22 @@ def download_source(source: Source, raw_dir: Path, opts: DownloadOptions,
             time.sleep(opts.backoff_seconds * 2 ** (attempt - 1))
     assert info is not None
     try:
-        return _finish(row, info, stage, raw_dir, taken_ids)
+        return _finish(row, info, stage, raw_dir, taken_ids, source.sha256)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
 
 
-def _finish(row: LedgerRow, info: dict[str, Any], stage: Path, raw_dir: Path, taken_ids: set[str]) -> LedgerRow:
+def _finish(row: LedgerRow, info: dict[str, Any], stage: Path, raw_dir: Path, taken_ids: set[str],
+            expected_sha256: str = "") -> LedgerRow:
     downloads = info.get("requested_downloads") or [{}]
     media = Path(downloads[0].get("filepath") or "")
     if not media.is_file():
         row.error_class, row.error_message = "download_error", "yt-dlp reported success but wrote no file"
+        return row
+    digest = sha256_file(media)
+    if expected_sha256 and digest != expected_sha256:
+        row.error_class = "checksum"
+        row.error_message = f"the downloaded file has sha256 {digest}, not the {expected_sha256} that sources.csv names"
         return row
     video_id = row.video_id or slug_id(str(info.get("id") or media.stem))
     if not row.video_id and video_id in taken_ids:
@@ -207,7 +232,7 @@ def _finish(row: LedgerRow, info: dict[str, Any], stage: Path, raw_dir: Path, ta
     media.replace(target)  # same filesystem: atomic
     row.path = target.name
     row.size = target.stat().st_size
-    row.sha256 = sha256_file(target)
+    row.sha256 = digest
     row.fps, row.duration = video.fps, video.duration
     row.width, row.height, row.has_audio = video.width, video.height, video.has_audio
     row.status, row.error_class, row.error_message = "ok", "", ""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import urlparse
@@ -11,7 +12,8 @@ from pipeline.ids import check_id
 from pipeline.tables import read_csv
 
 REQUIRED = ("url",)
-OPTIONAL = ("video_id", "channel", "style", "licence", "note")
+OPTIONAL = ("video_id", "sha256", "channel", "style", "licence", "note")
+_SHA256 = re.compile(r"[0-9a-f]{64}")
 
 
 @dataclass(frozen=True)
@@ -20,6 +22,7 @@ class Source:
     url: str                 # normalised: http(s)://, file:// (absolute), never a bare path
     video_id: str | None     # None: taken from the downloader's id
     url_error: str = ""      # why the url cannot be fetched (the row becomes a failed ledger row)
+    sha256: str = ""         # expected sha256 of the downloaded file ("" : not checked)
     channel: str = ""
     style: str = ""
     licence: str = ""
@@ -71,6 +74,9 @@ def read_sources(path: Path, *, base_dir: Path, allow_file_urls: bool = True) ->
                 first = seen_ids[video_id]
                 raise InputError(path, f"duplicate video_id {video_id!r} (first on line {first})", row.line)
             seen_ids[video_id] = row.line
+        sha256 = row.get("sha256").lower()
+        if sha256 and not _SHA256.fullmatch(sha256):
+            raise InputError(path, f"sha256 {row.get('sha256')!r} is not 64 hexadecimal digits", row.line)
         if url in seen_urls:
             raise InputError(path, f"duplicate url (first on line {seen_urls[url]})", row.line)
         seen_urls[url] = row.line
@@ -80,6 +86,7 @@ def read_sources(path: Path, *, base_dir: Path, allow_file_urls: bool = True) ->
                 url=url,
                 video_id=video_id,
                 url_error=url_error,
+                sha256=sha256,
                 channel=row.get("channel"),
                 style=row.get("style"),
                 licence=row.get("licence"),

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import os
 import shutil
 import sys
 import threading
@@ -11,7 +12,7 @@ from pathlib import Path
 import pyarrow as pa
 
 from pipeline.catalog import LEDGER, read_ledger
-from pipeline.download import DownloadOptions, LedgerRow, download_source
+from pipeline.download import DownloadOptions, LedgerRow, download_source, local_copies
 from pipeline.errors import RateLimitedError
 from pipeline.executor import run_items
 from pipeline.failures import Failure, check_failure_ratio, now, write_failures
@@ -68,6 +69,10 @@ def run(root: Path) -> None:
     todo = [s for s in sources if s.url not in rows]
     log.info("%d sources: %d already downloaded, %d to fetch", len(sources), len(rows), len(todo))
     taken = {r["video_id"] for r in rows.values()} | {s.video_id for s in sources if s.video_id}
+    mirror = params.get("local_copies") or os.environ.get("DANCE3D_MEDIA") or ""
+    copies = local_copies(Path(mirror) if mirror else None, {s.sha256 for s in todo if s.sha256})
+    if copies:
+        log.info("%d of %d sources are taken from local copies in %s", len(copies), len(todo), mirror)
     stop = threading.Event()
     lock = threading.Lock()
 
@@ -79,7 +84,7 @@ def run(root: Path) -> None:
         try:
             with lock:
                 snapshot = set(taken)
-            row = download_source(source, raw_dir, opts, snapshot)
+            row = download_source(source, raw_dir, opts, snapshot, local_copy=copies.get(source.sha256))
         except RateLimitedError as exc:
             stop.set()
             return LedgerRow(url=source.url, video_id=source.video_id or "", status="throttled",

@@ -7,9 +7,11 @@ DANCE3D_REQUIRE_ASSETS=1 (set by CI), which turns that skip into a failure.
 
 from __future__ import annotations
 
+import http.server
 import os
 import shutil
 import subprocess
+import threading
 from pathlib import Path
 
 import pytest
@@ -103,3 +105,30 @@ def run_stages(root: Path, *names: str) -> None:
 @pytest.fixture(scope="session")
 def mocap_dir() -> Path:
     return _asset_dir("DANCE3D_MOCAP", "perfume/aachan.bvh")
+
+
+class Mirror:
+    """Serves ``files`` (URL path -> bytes) the way a mirror of the public hosts would: /<host>/<path>."""
+
+    def __init__(self, files: dict[str, bytes]) -> None:
+        self.files, self.requests = files, []
+        mirror = self
+
+        class Handler(http.server.BaseHTTPRequestHandler):
+            def do_GET(self) -> None:  # noqa: N802 (http.server's naming)
+                mirror.requests.append(self.path)
+                body = mirror.files.get(self.path.split("?")[0])
+                if body is None:
+                    self.send_error(404)
+                    return
+                self.send_response(200)
+                self.send_header("Content-Length", str(len(body)))
+                self.end_headers()
+                self.wfile.write(body)
+
+            def log_message(self, *args) -> None:
+                pass
+
+        self.httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+        self.url = f"http://127.0.0.1:{self.httpd.server_address[1]}"
+        threading.Thread(target=self.httpd.serve_forever, daemon=True).start()

@@ -15,7 +15,7 @@ from pipeline.errors import RateLimitedError
 from pipeline.failures import StageFailed
 from pipeline.storage import sha256_file
 from stages import download
-from tests.conftest import set_params
+from tests.conftest import Mirror, set_params
 
 
 def ledger(project: Path) -> dict[str, dict]:
@@ -146,3 +146,72 @@ def test_rate_limiting_stops_politely_and_keeps_finished_work(project: Path, med
     assert rows["remote"]["status"] == "throttled" and rows["remote"]["error_class"] == "rate_limited"
     assert rows["later"]["status"] == "skipped"
     assert server.requests <= 3  # it did not hammer the site
+
+
+def _demo_sources_served(media_dir: Path, corrupt: str = "") -> tuple[Mirror, str]:
+    """A local server standing in for the demo's public host, and the demo's sources.csv pointed at it."""
+    from urllib.parse import urlparse
+
+    from pipeline.sources import read_sources
+    from tests.conftest import PROJECT
+
+    demo = read_sources(PROJECT / "manifests/sources.csv", base_dir=PROJECT)
+    by_sha = {sha256_file(p): p for p in sorted((media_dir / "videos").glob("*.mp4"))}
+    files = {urlparse(s.url).path: by_sha[s.sha256].read_bytes() for s in demo}
+    for s in demo:
+        if s.video_id == corrupt:
+            files[urlparse(s.url).path] = files[urlparse(s.url).path][:-1000]  # a truncated transfer
+    server = Mirror(files)
+    text = (PROJECT / "manifests/sources.csv").read_text().replace("https://raw.githubusercontent.com", server.url)
+    return server, text
+
+
+def test_the_demo_sources_download_from_their_public_urls_checksum_verified(project: Path, media_dir: Path,
+                                                                            monkeypatch) -> None:
+    monkeypatch.delenv("DANCE3D_MEDIA", raising=False)  # no local copies: the online path
+    server, text = _demo_sources_served(media_dir)
+    (project / "manifests/sources.csv").write_text(text)
+    download.run(project)
+    rows = ledger(project)
+    assert [rows[v]["status"] for v in ("musepose_dance", "taiji", "raga_trio", "solo_dance")] == ["ok"] * 4
+    assert len(set(server.requests)) == 4  # every clip came from the (stand-in) public host
+    assert rows["taiji"]["sha256"] == "34fa7a96a905a0934116b2f867fd72043a725346cc36897ab34660cf383d4581"
+    server.httpd.shutdown()
+
+
+def test_a_download_with_another_checksum_is_a_failed_row(project: Path, media_dir: Path, monkeypatch) -> None:
+    monkeypatch.delenv("DANCE3D_MEDIA", raising=False)
+    server, text = _demo_sources_served(media_dir, corrupt="taiji")
+    (project / "manifests/sources.csv").write_text(text)
+    set_params(project, "download", max_failure_ratio=1.0)
+    download.run(project)
+    rows = ledger(project)
+    assert rows["taiji"]["status"] == "failed" and rows["taiji"]["error_class"] == "checksum"
+    assert "not the 34fa7a96" in rows["taiji"]["error_message"]
+    assert not (project / "data/raw/taiji.mp4").exists()
+    assert rows["musepose_dance"]["status"] == "ok"
+    server.httpd.shutdown()
+
+
+def test_local_copies_with_the_same_checksum_replace_the_network(project: Path, media_dir: Path,
+                                                                 monkeypatch) -> None:
+    from tests.conftest import PROJECT
+
+    monkeypatch.setenv("DANCE3D_MEDIA", str(media_dir))
+    text = (PROJECT / "manifests/sources.csv").read_text().replace("https://raw.githubusercontent.com",
+                                                                   "http://127.0.0.1:9")  # nothing listens there
+    (project / "manifests/sources.csv").write_text(text)
+    download.run(project)
+    rows = ledger(project)
+    assert all(r["status"] == "ok" for r in rows.values())
+    assert rows["musepose_dance"]["url"].startswith("http://127.0.0.1:9/TMElyralab/MusePose/")
+    assert rows["musepose_dance"]["sha256"] == sha256_file(media_dir / "videos/dance_single_music_musepose.mp4")
+
+
+def test_a_malformed_sha256_names_file_and_line(project: Path) -> None:
+    from pipeline.errors import InputError
+
+    write_sources(project, "")
+    (project / "manifests/sources.csv").write_text("video_id,url,sha256\nx,https://example.org/x.mp4,abc\n")
+    with pytest.raises(InputError, match=r"sources\.csv:2: sha256 'abc' is not 64 hexadecimal digits"):
+        download.run(project)

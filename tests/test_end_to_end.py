@@ -39,9 +39,8 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
                                  monkeypatch) -> None:
     monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
     monkeypatch.setenv("DANCE3D_MOCAP", str(mocap_dir))
+    monkeypatch.setenv("DANCE3D_MEDIA", str(media_dir))  # local copies of the demo's public clips
     root = _copy_project(tmp_path / "dance3d")
-    (root / "demo").mkdir(exist_ok=True)
-    (root / "demo/media").symlink_to(media_dir / "videos")
     # The pipeline's mechanics are under test here, not the lifter's accuracy: train briefly.
     set_params(root, "train_lifter", steps=150, channels=64)
     set_params(root, "train", steps=40)
