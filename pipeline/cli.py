@@ -31,6 +31,7 @@ examples:
   dance3d manifests check     validate manifests: every problem as file:line: reason
   dance3d render data/motion24/musepose_dance_000.parquet musepose_dance_000_1_0 clip.mp4
                               draw a 3D clip (front and side views) with its music
+  dance3d models fetch        download, convert and verify the default detector and pose model
   dance3d models convert-videopose3d pretrained_h36m_detectron_coco.bin models/lifter.onnx
                               use the official VideoPose3D weights as the lifter
 """
@@ -85,8 +86,18 @@ def _parser() -> argparse.ArgumentParser:
     sample.add_argument("--corpus", type=Path, default=Path("data/corpus"), help="where the seed window comes from")
     sample.add_argument("--seed-frames", type=int, default=24, help="frames of the seed pose (default 24)")
     sample.add_argument("--temperature", type=float, default=0.0, help="0: most likely bins; > 0: sample")
-    models = sub.add_parser("models", help="model utilities (convert-videopose3d)")
+    models = sub.add_parser("models", help="model utilities (fetch, convert-videopose3d)")
     models_sub = models.add_subparsers(dest="action", required=True, metavar="ACTION")
+    fetch = models_sub.add_parser(
+        "fetch", help="download the default models from their sources, checksum and output verified",
+        description="Download each model from its source (sha256 checked), convert it where the source is "
+                    "not ONNX (MoveNet: Google's TF-Hub TFLite, with tf2onnx in a throw-away virtual "
+                    "environment; needs pip and a few minutes), and verify the result by its outputs on a "
+                    "fixed test card. DANCE3D_DOWNLOAD_MIRROR=<base url> fetches https://host/path from "
+                    "<base url>/host/path instead.")
+    fetch.add_argument("names", nargs="*", help="registry names (default: the detector and pose model in params.yaml)")
+    fetch.add_argument("--to", type=Path, default=None, help="target folder (default: the project's models/)")
+    fetch.add_argument("--force", action="store_true", help="fetch again even if a verified file is present")
     convert = models_sub.add_parser(
         "convert-videopose3d", help="convert an official VideoPose3D checkpoint to the lifter ONNX",
         description="Load an official VideoPose3D checkpoint (e.g. pretrained_h36m_detectron_coco.bin: 17 COCO "
@@ -95,6 +106,28 @@ def _parser() -> argparse.ArgumentParser:
     convert.add_argument("checkpoint", type=Path)
     convert.add_argument("out", type=Path)
     return parser
+
+
+def _fetch_models(root: Path, args: argparse.Namespace) -> int:
+    from pipeline.models.fetch import fetch_model
+    from pipeline.params import load_params, stage_params
+    from pipeline.stage import setup_logging
+
+    setup_logging()
+    names = args.names
+    if not names:
+        pose2d = stage_params(load_params(root / "params.yaml"), "pose2d")
+        names = [pose2d.get("detector", "rtmdet-nano-person"), pose2d.get("pose_model", "movenet-lightning")]
+    folder = args.to or root / "models"
+    failed = 0
+    for name in names:
+        try:
+            path = fetch_model(name, folder, force=args.force)
+            print(f"{name}: {path} (verified by its outputs)")
+        except Dance3dError as exc:
+            print(f"dance3d: {exc}", file=sys.stderr)
+            failed += 1
+    return 2 if failed else 0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -111,6 +144,8 @@ def main(argv: list[str] | None = None) -> int:
         return _sample(root, args)
     if args.command == "render":
         return _render(root, args)
+    if args.command == "models" and args.action == "fetch":
+        return _fetch_models(root, args)
     if args.command == "models":
         from pipeline.lifting.convert import convert_videopose3d
 

@@ -133,26 +133,26 @@ def test_missing_model_without_download_names_the_file_and_where_to_put_it(tmp_p
 
 def test_failed_download_is_one_clear_line(tmp_path, monkeypatch) -> None:
     monkeypatch.setenv("DANCE3D_MODELS", str(tmp_path / "empty"))
-    spec = dataclasses.replace(registry.REGISTRY["rtmdet-nano-person"], url="http://127.0.0.1:9/rtmdet.zip")
-    monkeypatch.setitem(registry.REGISTRY, spec.name, spec)
-    with pytest.raises(ModelMissingError, match=r"rtmdet_nano_person_end2end\.onnx not found in .* download from "
-                                                r"http://127\.0\.0\.1:9/rtmdet\.zip failed .* by hand"):
+    monkeypatch.setenv("DANCE3D_DOWNLOAD_MIRROR", "http://127.0.0.1:9")  # nothing listens there
+    with pytest.raises(ModelMissingError, match=r"rtmdet_nano_person_end2end\.onnx not found in .* download of "
+                                                r"http://127\.0\.0\.1:9/raw\.githubusercontent\.com/.* failed"
+                                                r".* by hand") as err:
         registry.resolve_model("rtmdet-nano-person", tmp_path)
-    assert not (tmp_path / "models" / spec.file).exists()
+    assert "\n" not in str(err.value)
+    assert not (tmp_path / "models" / "rtmdet_nano_person_end2end.onnx").exists()
 
 
 def test_download_with_a_wrong_checksum_is_refused(tmp_path, monkeypatch) -> None:
-    import zipfile
+    from pipeline.models import fetch
 
-    archive = tmp_path / "m.zip"
-    with zipfile.ZipFile(archive, "w") as z:
-        z.writestr("pkg/end2end.onnx", b"not the real model")
+    fake = tmp_path / "m.onnx"
+    fake.write_bytes(b"not the real model")
+    route = dataclasses.replace(fetch.ROUTES["rtmdet-nano-person"][0], url=fake.as_uri())
+    monkeypatch.setitem(fetch.ROUTES, "rtmdet-nano-person", (route,))
     monkeypatch.setenv("DANCE3D_MODELS", str(tmp_path / "empty"))
-    spec = dataclasses.replace(registry.REGISTRY["rtmdet-nano-person"], url=archive.as_uri())
-    monkeypatch.setitem(registry.REGISTRY, spec.name, spec)
     with pytest.raises(ModelMissingError, match="checksum mismatch"):
         registry.resolve_model("rtmdet-nano-person", tmp_path)
-    assert not (tmp_path / "models" / spec.file).exists()
+    assert not (tmp_path / "models" / "rtmdet_nano_person_end2end.onnx").exists()
 
 
 def test_models_are_found_through_the_environment(models_dir: Path, tmp_path: Path, monkeypatch) -> None:

@@ -1,22 +1,20 @@
 """The model registry: each model's file, checksum, official source and input spec.
 
 Lookup order for a model file: ``$DANCE3D_MODELS``, the project's ``models/`` folder,
-then a download from the registered URL with its sha256 checked. A model that cannot be
-found gives one line saying which file to put where.
+then a download from its route (``pipeline.models.fetch``: sha256 checked, outputs
+verified). Models whose route needs a conversion are fetched by ``dance3d models fetch``,
+never silently during a stage. A model that cannot be found gives one line saying which
+file to put where.
 """
 
 from __future__ import annotations
 
-import io
 import logging
 import os
-import urllib.request
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 from pipeline.errors import ModelMissingError
-from pipeline.storage import atomic_path, sha256_file
 
 log = logging.getLogger(__name__)
 
@@ -28,8 +26,8 @@ class ModelSpec:
     kind: str                   # rtmdet | movenet | rtmpose | lifter
     input_size: tuple[int, int]  # (width, height) the model expects
     sha256: str | None          # None: not pinned, so never downloaded automatically
-    url: str | None = None      # official download (a .onnx, or a .zip holding ``member``)
-    member: str | None = None
+    url: str | None = None      # where users get it by hand (fetchable models have routes in fetch.py)
+    member: str | None = None   # the file inside that archive
     note: str = ""
 
 
@@ -39,9 +37,6 @@ REGISTRY: dict[str, ModelSpec] = {
         ModelSpec(
             "rtmdet-nano-person", "rtmdet_nano_person_end2end.onnx", "rtmdet", (320, 320),
             "4720eda18a18402e7b76d85827d4bc60fba18111fc0b74b559e4d24da9ddc3d2",
-            url="https://download.openmmlab.com/mmpose/v1/projects/rtmposev1/onnx_sdk/"
-                "rtmdet_nano_8xb32-100e_coco-obj365-person-05d8511e.zip",
-            member="end2end.onnx",
             note="RTMDet-nano person detector (OpenMMLab, Apache-2.0), mmdeploy end2end export with NMS",
         ),
         ModelSpec(
@@ -89,28 +84,17 @@ def resolve_model(name: str, project_root: Path | None = None, *, allow_download
             return candidate
     target = dirs[-1] / spec.file
     where = " or ".join(str(d) for d in dirs)
-    if not (allow_download and spec.url and spec.sha256):
+    from pipeline.models.fetch import ROUTES, FetchError, fetch_model
+
+    routes = ROUTES.get(name, ())
+    if not routes:
         raise ModelMissingError(f"model {name}: {spec.file} not found; put it in {where} ({spec.note})")
+    if not (allow_download and any(not r.convert for r in routes)):
+        raise ModelMissingError(f"model {name}: {spec.file} not found; put it in {where}, "
+                                f"or run `dance3d models fetch {name}` ({spec.note})")
     try:
-        _download(spec, target)
-    except Exception as exc:
-        raise ModelMissingError(f"model {name}: {spec.file} not found in {where} and the download from "
-                                f"{spec.url} failed ({exc}); put the file there by hand") from None
-    return target
-
-
-def _download(spec: ModelSpec, target: Path) -> None:
-    log.info("downloading %s from %s", spec.file, spec.url)
-    with urllib.request.urlopen(spec.url, timeout=60) as response:
-        payload = response.read()
-    if spec.member:
-        with zipfile.ZipFile(io.BytesIO(payload)) as archive:
-            names = [n for n in archive.namelist() if n.endswith(spec.member)]
-            if not names:
-                raise ValueError(f"archive has no {spec.member}")
-            payload = archive.read(names[0])
-    with atomic_path(target) as tmp:
-        tmp.write_bytes(payload)
-        digest = sha256_file(tmp)
-        if digest != spec.sha256:
-            raise ValueError(f"checksum mismatch: got sha256 {digest}, expected {spec.sha256}")
+        return fetch_model(name, target.parent, convert=False)
+    except FetchError as exc:
+        reason = " ".join(str(exc).split())
+        raise ModelMissingError(f"model {name}: {spec.file} not found in {where} and {reason}; "
+                                f"put the file there by hand") from None

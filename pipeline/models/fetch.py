@@ -1,0 +1,229 @@
+"""``dance3d models fetch``: every default model on a fresh machine, from its source, verified.
+
+A model has one or more *routes*: a URL (an ONNX file, or an archive holding it, or a
+TFLite file to convert) and the sha256 of what that URL serves. A route whose file needs
+converting (MoveNet: Google's TF-Hub TFLite) is converted with tf2onnx in a throw-away
+virtual environment, never the project's own. Another converter version may write other
+bytes, so every fetched model is finally **verified by its outputs**: it must reproduce the
+reference model's outputs on fixed synthetic inputs (``golden.json``), within tolerances.
+
+``DANCE3D_DOWNLOAD_MIRROR`` (a base URL) fetches ``https://host/path`` from
+``<mirror>/host/path`` instead: for air-gapped sites, and for the tests' local server.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import logging
+import os
+import subprocess
+import sys
+import tempfile
+import urllib.request
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+from urllib.parse import urlparse
+
+import cv2
+import numpy as np
+
+from pipeline.errors import ModelMissingError
+from pipeline.storage import atomic_path
+
+log = logging.getLogger(__name__)
+
+MIRROR_ENV = "DANCE3D_DOWNLOAD_MIRROR"
+GOLDEN = Path(__file__).with_name("golden.json")
+
+# MODELS.md section 2: how the shared MoveNet ONNX was made from Google's TFLite.
+TF2ONNX_TF215 = ("tensorflow-cpu==2.15.1", "tf2onnx==1.17.0", "onnx==1.16.2", "numpy<2")
+
+
+@dataclass(frozen=True)
+class Route:
+    url: str
+    sha256: str                          # of the downloaded file, or of ``member`` inside it
+    member: str | None = None            # a file inside a zip archive
+    convert: tuple[str, ...] = ()        # tf2onnx arguments: the download is a TFLite file to convert
+    converter: tuple[str, ...] = ()      # pip requirements of the throw-away conversion environment
+    source: str = ""                     # who publishes the file
+
+
+ROUTES: dict[str, tuple[Route, ...]] = {
+    "rtmdet-nano-person": (
+        Route("https://raw.githubusercontent.com/zli20/RtmDet-RtmPose-OnnxRuntime/"
+              "f7cb01b156d0ddce64ea09dfd24e450103782db9/models/rtmdet_nano.onnx",
+              "4720eda18a18402e7b76d85827d4bc60fba18111fc0b74b559e4d24da9ddc3d2",
+              source="OpenMMLab's RTMDet-nano person export (Deploee), as published at this commit"),
+    ),
+    "movenet-lightning": (
+        Route("https://tfhub.dev/google/lite-model/movenet/singlepose/lightning/tflite/int8/4?lite-format=tflite",
+              "cd7cc22fa946e5d146a7b98d496853e1923e22828d3972d579973f27f91bb105",
+              convert=("--dequantize", "--opset", "13"), converter=TF2ONNX_TF215,
+              source="Google's TF-Hub release google/movenet/singlepose/lightning/4 (int8 TFLite)"),
+    ),
+}
+
+
+class FetchError(ModelMissingError):
+    """A model could not be fetched, converted or verified."""
+
+
+def mirrored(url: str) -> str:
+    base = os.environ.get(MIRROR_ENV, "").rstrip("/")
+    if not base:
+        return url
+    parsed = urlparse(url)
+    return f"{base}/{parsed.netloc}{parsed.path}"
+
+
+def download(url: str, timeout: float = 120) -> bytes:
+    request = urllib.request.Request(mirrored(url), headers={"User-Agent": "dance3d"})
+    with urllib.request.urlopen(request, timeout=timeout) as response:
+        return response.read()
+
+
+def _sha256(data: bytes) -> str:
+    import hashlib
+
+    return hashlib.sha256(data).hexdigest()
+
+
+def _run(cmd: list[str], what: str) -> None:
+    result = subprocess.run(cmd, capture_output=True, text=True)
+    if result.returncode != 0:
+        tail = "\n".join((result.stdout + result.stderr).strip().splitlines()[-5:])
+        raise FetchError(f"{what} failed (exit {result.returncode}):\n{tail}")
+
+
+def convert_tflite(tflite: Path, out: Path, args: tuple[str, ...], requirements: tuple[str, ...]) -> None:
+    """tf2onnx in a throw-away venv (TensorFlow never enters the project's environment)."""
+    with tempfile.TemporaryDirectory(prefix="dance3d-convert-") as tmp:
+        env = Path(tmp) / "venv"
+        _run([sys.executable, "-m", "venv", str(env)], "creating the conversion environment")
+        log.info("installing the converter in a throw-away environment: %s", " ".join(requirements))
+        _run([str(env / "bin/pip"), "install", "--quiet", *requirements],
+             f"pip install {' '.join(requirements)} (the converter)")
+        _run([str(env / "bin/python"), "-m", "tf2onnx.convert", "--tflite", str(tflite), "--output", str(out), *args],
+             f"tf2onnx conversion of {tflite.name}")
+
+
+def fetch_route(route: Route, target: Path) -> None:
+    """Download (checksum verified), extract or convert; ``target`` is written atomically."""
+    try:
+        payload = download(route.url)
+    except Exception as exc:
+        raise FetchError(f"download of {mirrored(route.url)} failed: {exc}") from None
+    if route.member:
+        with zipfile.ZipFile(io.BytesIO(payload)) as archive:
+            names = [n for n in archive.namelist() if n.endswith(route.member)]
+            if not names:
+                raise FetchError(f"{route.url} has no member {route.member}")
+            payload = archive.read(names[0])
+    digest = _sha256(payload)
+    if digest != route.sha256:
+        raise FetchError(f"{mirrored(route.url)}: checksum mismatch: got sha256 {digest}, expected {route.sha256}")
+    with atomic_path(target) as tmp:
+        if not route.convert:
+            tmp.write_bytes(payload)
+            return
+        with tempfile.TemporaryDirectory(prefix="dance3d-fetch-") as work:
+            source = Path(work) / "model.tflite"
+            source.write_bytes(payload)
+            convert_tflite(source, tmp, route.convert, route.converter)
+
+
+# --- verification by outputs ---------------------------------------------------------------
+
+def figure_image(width: int = 320, height: int = 320) -> np.ndarray:
+    """A deterministic synthetic test card: a person-like figure on a colour gradient (BGR)."""
+    y, x = np.mgrid[0:height, 0:width]
+    image = np.stack([x * 255 // width, y * 255 // height, np.full_like(x, 90)], -1).astype(np.uint8)
+    s, cx = height / 320, width // 2
+
+    def p(a: float, b: float) -> tuple[int, int]:
+        return int(cx + a * s), int(b * s)
+
+    skin, shirt, trousers = (80, 120, 200), (40, 40, 180), (90, 60, 30)
+    cv2.circle(image, p(0, 50), int(18 * s), skin, -1)
+    cv2.rectangle(image, p(-28, 72), p(28, 170), shirt, -1)
+    for (a, b), (c, d), colour in [((-28, 80), (-70, 140), shirt), ((28, 80), (70, 140), shirt),
+                                   ((-70, 140), (-80, 190), skin), ((70, 140), (80, 190), skin)]:
+        cv2.line(image, p(a, b), p(c, d), colour, int(14 * s))
+    for a, c in [(-15, -30), (15, 30)]:
+        cv2.line(image, p(a, 170), p(c, 240), trousers, int(20 * s))
+        cv2.line(image, p(c, 240), p(c, 300), trousers, int(18 * s))
+    return image
+
+
+def model_outputs(name: str, path: Path) -> dict[str, list]:
+    """What the model computes on the test card, through the project's own wrappers."""
+    from pipeline.models.detector import letterbox
+    from pipeline.models.pose import MoveNetPose
+    from pipeline.models.session import create_session
+
+    session = create_session(path)
+    image = figure_image()
+    if name == "rtmdet-nano-person":
+        dets = session.run(None, {session.get_inputs()[0].name: letterbox(image).tensor})[0][0]
+        return {"dets": np.asarray(dets[:5], np.float64).round(3).tolist()}
+    if name == "movenet-lightning":
+        box = np.array([[60, 20, 260, 310]], np.float32)
+        return {"keypoints": np.asarray(MoveNetPose(session).estimate(image, box)[0], np.float64).round(3).tolist()}
+    raise FetchError(f"no output check for model {name}")
+
+
+TOLERANCE = {"dets": (1.0, 0.01), "keypoints": (2.0, 0.06)}  # (pixels, scores): converter/runtime noise
+
+
+def verify_outputs(name: str, path: Path) -> None:
+    """Raise FetchError unless ``path`` reproduces the reference outputs recorded in golden.json."""
+    expected = json.loads(GOLDEN.read_text())[name]
+    got = model_outputs(name, path)
+    for key, want in expected.items():
+        a, b = np.asarray(got[key], float), np.asarray(want, float)
+        pixels, scores = TOLERANCE[key]
+        if a.shape != b.shape:
+            raise FetchError(f"{path}: output {key} has shape {a.shape}, expected {b.shape}")
+        if key == "dets":
+            dp, ds = np.abs(a[:, :4] - b[:, :4]).max(), np.abs(a[:, 4] - b[:, 4]).max()
+        else:  # x, y, score per keypoint
+            dp, ds = np.abs(a[:, :2] - b[:, :2]).max(), np.abs(a[:, 2] - b[:, 2]).max()
+        if dp > pixels or ds > scores:
+            raise FetchError(f"{path}: outputs differ from the reference model's ({key}: {dp:.2f} px, "
+                             f"scores {ds:.3f}; allowed {pixels} px, {scores})")
+
+
+def fetch_model(name: str, folder: Path, *, force: bool = False, convert: bool = True) -> Path:
+    """Fetch model ``name`` into ``folder`` (its registry file name) and verify it by its outputs.
+
+    ``convert=False`` only takes routes that need no conversion (the quick automatic path)."""
+    from pipeline.models.registry import get_spec
+
+    spec = get_spec(name)
+    if name not in ROUTES:
+        raise FetchError(f"model {name} has no download route ({spec.note})")
+    target = Path(folder) / spec.file
+    if not force:
+        from pipeline.models.registry import model_dirs
+
+        for present in [target] + [d / spec.file for d in model_dirs(Path(folder).parent)]:
+            if present.is_file():
+                verify_outputs(name, present)
+                log.info("%s: %s is present and verified", name, present)
+                return present
+    errors = []
+    for route in ROUTES[name]:
+        if route.convert and not convert:
+            continue
+        log.info("%s: fetching %s (%s)", name, mirrored(route.url), route.source)
+        try:
+            fetch_route(route, target)
+            verify_outputs(name, target)
+            return target
+        except FetchError as exc:
+            target.unlink(missing_ok=True)
+            errors.append(str(exc))
+    raise FetchError(f"model {name}: every route failed:\n  " + "\n  ".join(errors))

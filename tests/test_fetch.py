@@ -1,0 +1,83 @@
+"""`dance3d models fetch` on the online path, with a local HTTP server standing in for the public hosts."""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+from pathlib import Path
+from typing import Iterator
+
+import pytest
+
+from pipeline.cli import main
+from pipeline.models.fetch import MIRROR_ENV, ROUTES, FetchError, fetch_model, verify_outputs
+from tests.conftest import Mirror
+
+
+def _mirror_path(url: str) -> str:
+    from urllib.parse import urlparse
+
+    parsed = urlparse(url)
+    return f"/{parsed.netloc}{parsed.path}"
+
+
+@pytest.fixture
+def mirror(monkeypatch) -> Iterator[callable]:
+    servers = []
+
+    def start(files: dict[str, bytes]) -> Mirror:
+        servers.append(Mirror(files))
+        monkeypatch.setenv(MIRROR_ENV, servers[-1].url)
+        monkeypatch.delenv("DANCE3D_MODELS", raising=False)
+        return servers[-1]
+
+    yield start
+    for server in servers:
+        server.httpd.shutdown()
+
+
+def _sha(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def test_the_detector_is_fetched_checksum_and_output_verified(tmp_path: Path, models_dir: Path, mirror) -> None:
+    route = ROUTES["rtmdet-nano-person"][0]
+    server = mirror({_mirror_path(route.url): (models_dir / "rtmdet_nano_person_end2end.onnx").read_bytes()})
+    assert main(["--root", str(tmp_path), "models", "fetch", "rtmdet-nano-person"]) == 0
+    path = tmp_path / "models/rtmdet_nano_person_end2end.onnx"
+    assert _sha(path) == route.sha256
+    assert server.requests == [_mirror_path(route.url)]
+    fetch_model("rtmdet-nano-person", tmp_path / "models")  # present and verified: nothing downloaded
+    assert len(server.requests) == 1
+
+
+def test_a_corrupt_download_is_refused_and_nothing_is_left(tmp_path: Path, mirror, capsys) -> None:
+    route = ROUTES["rtmdet-nano-person"][0]
+    mirror({_mirror_path(route.url): b"an error page, not a model"})
+    assert main(["--root", str(tmp_path), "models", "fetch", "rtmdet-nano-person"]) == 2
+    assert "checksum mismatch" in capsys.readouterr().err
+    assert not list((tmp_path / "models").glob("*.onnx"))
+
+
+def test_a_model_that_computes_something_else_fails_verification(tmp_path: Path, models_dir: Path) -> None:
+    import numpy as np
+    import onnx
+    from onnx import numpy_helper
+
+    model = onnx.load(str(models_dir / "rtmdet_nano_person_end2end.onnx"))
+    weight = max(model.graph.initializer, key=lambda t: int(np.prod(t.dims)))  # the largest weight tensor
+    weight.CopyFrom(numpy_helper.from_array(numpy_helper.to_array(weight) * 0.5, weight.name))
+    onnx.save(model, str(tmp_path / "changed.onnx"))
+    verify_outputs("rtmdet-nano-person", models_dir / "rtmdet_nano_person_end2end.onnx")
+    with pytest.raises(FetchError, match="outputs differ from the reference"):
+        verify_outputs("rtmdet-nano-person", tmp_path / "changed.onnx")
+
+
+@pytest.mark.slow
+def test_movenet_is_converted_from_googles_tflite_in_a_throwaway_environment(tmp_path: Path, models_dir: Path,
+                                                                              mirror) -> None:
+    route = ROUTES["movenet-lightning"][0]
+    mirror({_mirror_path(route.url): (models_dir / "movenet_singlepose_lightning_int8_4.tflite").read_bytes()})
+    path = fetch_model("movenet-lightning", tmp_path / "models")  # raises unless its outputs match the reference
+    assert path.name == "movenet_singlepose_lightning_4_dequant.onnx"
+    assert importlib.util.find_spec("tensorflow") is None and importlib.util.find_spec("tf2onnx") is None
