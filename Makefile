@@ -7,29 +7,52 @@
 PYTHON ?= python3
 VENV := .venv
 BIN := $(abspath $(VENV))/bin
+# Local copies are used where they exist; without them the demo downloads its clips and
+# models from their public sources (checksums verified).
+ifneq ($(wildcard ../shared/media),)
 DANCE3D_MEDIA ?= $(abspath ../shared/media)
+endif
+ifneq ($(wildcard ../shared/models),)
 DANCE3D_MODELS ?= $(abspath ../shared/models)
+endif
+ifneq ($(wildcard ../shared/mocap),)
 DANCE3D_MOCAP ?= $(abspath ../shared/mocap)
+endif
 export DANCE3D_MEDIA DANCE3D_MODELS DANCE3D_MOCAP
 
-.PHONY: setup demo demo-media test test-fast browser clean-demo
+.PHONY: setup lock demo models test test-fast browser clean-demo
 
 setup: $(VENV)/.installed
 
-$(VENV)/.installed: pyproject.toml
+# Exact versions from requirements.lock (what CI tested); pyproject.toml keeps the ranges.
+$(VENV)/.installed: pyproject.toml requirements.lock
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/pip install --quiet --upgrade pip
 	# torch first: the CPU wheel, so the `train` extra does not pull CUDA packages.
-	$(BIN)/pip install --quiet torch==2.13.0
-	$(BIN)/pip install --quiet -e '.[train,dev,ray]'
+	$(BIN)/pip install --quiet -c requirements.lock pip torch
+	$(BIN)/pip install --quiet -c requirements.lock -e '.[train,dev,ray]'
 	touch $@
 
-demo-media:
-	@test -d "$(DANCE3D_MEDIA)/videos" || { echo "demo: no demo media at $(DANCE3D_MEDIA): run 'make demo DANCE3D_MEDIA=/path/to/media' with a videos/ folder holding the files named in manifests/sources.csv"; exit 1; }
-	@mkdir -p demo
-	@ln -sfn "$(DANCE3D_MEDIA)/videos" demo/media
+# Refresh requirements.lock: resolve pyproject.toml's ranges afresh in a throw-away venv
+# and freeze what it installed. Run `make test` on the result before committing it.
+LOCK_VENV := $(abspath .lock-venv)
+lock:
+	rm -rf $(LOCK_VENV)
+	$(PYTHON) -m venv $(LOCK_VENV)
+	$(LOCK_VENV)/bin/pip install --quiet --upgrade pip
+	$(LOCK_VENV)/bin/pip install --quiet torch==2.13.0
+	$(LOCK_VENV)/bin/pip install --quiet '.[train,dev,ray]'
+	{ echo "# Exact versions CI tests with (pip constraints). Regenerate with 'make lock'."; \
+	  echo "# torch is the CPU build: install it before the project (see the Makefile)."; \
+	  $(LOCK_VENV)/bin/pip freeze --all --exclude-editable | grep -v '^dance3d' | sed 's/^torch==\([^+]*\)+cpu/torch==\1/'; \
+	} > requirements.lock
+	rm -rf $(LOCK_VENV) build *.egg-info
 
-demo: setup demo-media
+# The default detector and pose model: found in DANCE3D_MODELS or models/, else fetched
+# from their sources (MoveNet is converted from Google's TFLite in a throw-away venv).
+models: setup
+	PATH="$(BIN):$$PATH" dance3d models fetch
+
+demo: setup models
 	PATH="$(BIN):$$PATH" dvc repro
 
 test: setup
@@ -44,4 +67,4 @@ browser:
 	DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium chromium-driver
 
 clean-demo:
-	rm -rf data demo/media
+	rm -rf data
