@@ -1,0 +1,1 @@
+"""Annotators: track manifests, proposals, the review page, and clean (manifests applied)."""

@@ -1,0 +1,1 @@
+"""What every stage shares: storage, the executor and item loop, failures, errors, ids, paths, params."""

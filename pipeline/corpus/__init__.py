@@ -1,0 +1,1 @@
+"""The corpus: windows, Parquet shards and the dataset card."""

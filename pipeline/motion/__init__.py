@@ -1,0 +1,1 @@
+"""3D: motion capture, the lifter, HP smoothing, resampling, motion files, rendering."""

@@ -1,0 +1,1 @@
+"""Music: loudness normalisation and features on the motion clock."""
