@@ -25,12 +25,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from pipeline.media import ffmpeg_exe, iter_frames, probe  # noqa: E402
-from pipeline.models.detector import RTMDetDetector, largest  # noqa: E402
-from pipeline.models.pose import MoveNetPose, crop_transform, warp  # noqa: E402
-from pipeline.models.session import create_session  # noqa: E402
-from pipeline.pose2d import Pose2dOptions, estimate_segment, poses_to_table  # noqa: E402
-from pipeline.tracking import assign_tracks  # noqa: E402
+from pipeline.ingest.media import ffmpeg_exe, iter_frames, probe  # noqa: E402
+from pipeline.pose.models.detector import RTMDetDetector, largest  # noqa: E402
+from pipeline.pose.models.pose import MoveNetPose, crop_transform, warp  # noqa: E402
+from pipeline.pose.models.session import create_session  # noqa: E402
+from pipeline.pose.pose2d import Pose2dOptions, estimate_segment, poses_to_table  # noqa: E402
+from pipeline.pose.tracking import assign_tracks  # noqa: E402
 
 
 def load_models(models: Path):

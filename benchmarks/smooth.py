@@ -18,7 +18,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from pipeline.smoothing import hp_trend  # noqa: E402
+from pipeline.motion.smoothing import hp_trend  # noqa: E402
 
 
 def per_series_statsmodels(clips: list[np.ndarray], lamb: float) -> list[np.ndarray]:
@@ -34,7 +34,7 @@ def vectorised(clips: list[np.ndarray], lamb: float) -> list[np.ndarray]:
 def lift_fps(lifter: Path, frames: int = 2000, clips: int = 8, runs: int = 3) -> float:
     import onnxruntime as ort
 
-    from pipeline.lifting.infer import Lifter
+    from pipeline.motion.lifting.infer import Lifter
 
     lift = Lifter(ort.InferenceSession(str(lifter)))
     rng = np.random.default_rng(0)

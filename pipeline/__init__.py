@@ -4,7 +4,7 @@ Every piece of logic lives in this package and is testable alone; the modules in
 ``stages/`` are thin DVC entry points around it.
 """
 
-from pipeline.numba_cache import claim_slot
+from pipeline.core.numba_cache import claim_slot
 
 __version__ = "0.1.0"
 

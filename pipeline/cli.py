@@ -8,8 +8,8 @@ import os
 import sys
 from pathlib import Path
 
-from pipeline.errors import Dance3dError
-from pipeline.paths import FAILURE_DIRS
+from pipeline.core.errors import Dance3dError
+from pipeline.core.paths import FAILURE_DIRS
 from stages import STAGES
 
 DESCRIPTION = """\
@@ -109,9 +109,9 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _fetch_models(root: Path, args: argparse.Namespace) -> int:
-    from pipeline.models.fetch import fetch_model
-    from pipeline.params import load_params, stage_params
-    from pipeline.stage import setup_logging
+    from pipeline.core.params import load_params, stage_params
+    from pipeline.core.stage import setup_logging
+    from pipeline.pose.models.fetch import fetch_model
 
     setup_logging()
     names = args.names
@@ -134,7 +134,7 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     root = args.root.resolve()
     if args.command == "run":
-        from pipeline.stage import run_stage, setup_logging
+        from pipeline.core.stage import run_stage, setup_logging
 
         setup_logging()
         module = importlib.import_module(f"stages.{args.stage}")
@@ -147,7 +147,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "models" and args.action == "fetch":
         return _fetch_models(root, args)
     if args.command == "models":
-        from pipeline.lifting.convert import convert_videopose3d
+        from pipeline.motion.lifting.convert import convert_videopose3d
 
         try:
             model = convert_videopose3d(args.checkpoint, args.out)
@@ -171,9 +171,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _review(root: Path, args: argparse.Namespace) -> int:
-    from pipeline.annotation import proposal_options
-    from pipeline.params import load_params, stage_params
-    from pipeline.review.server import ReviewApp, serve
+    from pipeline.annotate.commands import proposal_options
+    from pipeline.annotate.review.server import ReviewApp, serve
+    from pipeline.core.params import load_params, stage_params
 
     params = load_params(root / "params.yaml")
     app = ReviewApp(root, proposal_options(params), float(stage_params(params, "clean").get("min_clip_seconds", 2.0)))
@@ -189,9 +189,9 @@ def _review(root: Path, args: argparse.Namespace) -> int:
 
 
 def _retry(root: Path, stage: str) -> int:
-    from pipeline.failures import read_failures
-    from pipeline.itemstage import only_items
-    from pipeline.stage import run_stage, setup_logging
+    from pipeline.core.failures import read_failures
+    from pipeline.core.itemstage import only_items
+    from pipeline.core.stage import run_stage, setup_logging
 
     setup_logging()
     failed = {f.item for f in read_failures(root / FAILURE_DIRS[stage])}
@@ -209,9 +209,9 @@ def _sample(root: Path, args: argparse.Namespace) -> int:
     import numpy as np
     import torch
 
-    from pipeline.audio import compute_features, load_for_features
-    from pipeline.motionfile import MotionClip, clips_to_table
-    from pipeline.storage import write_parquet
+    from pipeline.core.storage import write_parquet
+    from pipeline.motion.motionfile import MotionClip, clips_to_table
+    from pipeline.music.audio import compute_features, load_for_features
     from pipeline.train.dataset import WindowDataset
     from pipeline.train.loop import load_model
     from pipeline.train.model import generate
@@ -243,10 +243,10 @@ def _sample(root: Path, args: argparse.Namespace) -> int:
 
 
 def _render(root: Path, args: argparse.Namespace) -> int:
-    from pipeline.motionfile import read_clips
-    from pipeline.paths import SEGMENTS
-    from pipeline.render3d import render_clip
-    from pipeline.storage import read_meta
+    from pipeline.core.paths import SEGMENTS
+    from pipeline.core.storage import read_meta
+    from pipeline.motion.motionfile import read_clips
+    from pipeline.motion.render3d import render_clip
 
     clips = {c.clip_id: c for c in read_clips(args.motion)}
     if args.clip_id not in clips:
@@ -262,8 +262,8 @@ def _render(root: Path, args: argparse.Namespace) -> int:
 
 
 def _manifests(root: Path, args: argparse.Namespace) -> int:
-    from pipeline.annotation import check_manifests, proposal_options, seed_manifests
-    from pipeline.params import load_params, stage_params
+    from pipeline.annotate.commands import check_manifests, proposal_options, seed_manifests
+    from pipeline.core.params import load_params, stage_params
 
     params = load_params(root / "params.yaml")
     if args.action == "seed":

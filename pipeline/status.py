@@ -6,10 +6,10 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 
-from pipeline.catalog import read_index, read_ledger
-from pipeline.failures import FAILURES_FILE
-from pipeline.paths import AUDIO_FEATURES, CLEAN, CORPUS, MOTION24, POSE2D, POSE3D, RAW, SEGMENTS, SMOOTH, TRACKS
-from pipeline.storage import item_files
+from pipeline.core.failures import FAILURES_FILE
+from pipeline.core.paths import AUDIO_FEATURES, CLEAN, CORPUS, MOTION24, POSE2D, POSE3D, RAW, SEGMENTS, SMOOTH, TRACKS
+from pipeline.core.storage import item_files
+from pipeline.ingest.catalog import read_index, read_ledger
 
 
 def summarise(root: Path) -> str:

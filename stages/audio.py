@@ -1,5 +1,5 @@
 """audio stage: data/segments -> data/audio/<segment_id>.wav (44.1 kHz, EBU R128) and
-data/audio_features/<segment_id>.parquet (24 fps on the segment clock; see pipeline/audio.py).
+data/audio_features/<segment_id>.parquet (24 fps on the segment clock; see pipeline/music/audio.py).
 Segments without an audio track are listed in metrics/audio.json and left out downstream."""
 
 from __future__ import annotations
@@ -11,18 +11,18 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 
-import pipeline.audio
-from pipeline.audio import FPS, LoudnessOptions, compute_features, load_for_features, normalise_loudness
-from pipeline.catalog import read_index
-from pipeline.itemstage import WorkItem, run_item_stage
-from pipeline.params import load_params, stage_params
-from pipeline.paths import AUDIO, AUDIO_FEATURES, METRICS, SEGMENTS
-from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import code_fingerprint, fingerprint, item_files, read_meta, write_json, write_parquet
+import pipeline.music.audio
+from pipeline.core.itemstage import WorkItem, run_item_stage
+from pipeline.core.params import load_params, stage_params
+from pipeline.core.paths import AUDIO, AUDIO_FEATURES, METRICS, SEGMENTS
+from pipeline.core.stage import run_stage, setup_logging
+from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta, write_json, write_parquet
+from pipeline.ingest.catalog import read_index
+from pipeline.music.audio import FPS, LoudnessOptions, compute_features, load_for_features, normalise_loudness
 
 log = logging.getLogger("dance3d.audio")
 SCHEMA_VERSION = 1
-CODE = code_fingerprint(pipeline.audio)
+CODE = code_fingerprint(pipeline.music.audio)
 
 
 def _fixed(values: np.ndarray) -> pa.Array:

@@ -8,19 +8,19 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 
-import pipeline.clean
-import pipeline.manifests
-import pipeline.proposals
-from pipeline.annotation import check_manifests, proposal_options, tracked_segments
-from pipeline.clean import SCHEMA_VERSION, CleanOptions, apply_manifest, clips_table
-from pipeline.errors import InputError, InputErrors
-from pipeline.itemstage import WorkItem, run_item_stage
-from pipeline.manifests import parse_manifest
-from pipeline.params import load_params, stage_params
-from pipeline.paths import CLEAN, METRICS, TRACK_MANIFESTS, TRACKS
-from pipeline.proposals import propose
-from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import (
+import pipeline.annotate.clean
+import pipeline.annotate.manifests
+import pipeline.annotate.proposals
+from pipeline.annotate.clean import SCHEMA_VERSION, CleanOptions, apply_manifest, clips_table
+from pipeline.annotate.commands import check_manifests, proposal_options, tracked_segments
+from pipeline.annotate.manifests import parse_manifest
+from pipeline.annotate.proposals import propose
+from pipeline.core.errors import InputError, InputErrors
+from pipeline.core.itemstage import WorkItem, run_item_stage
+from pipeline.core.params import load_params, stage_params
+from pipeline.core.paths import CLEAN, METRICS, TRACK_MANIFESTS, TRACKS
+from pipeline.core.stage import run_stage, setup_logging
+from pipeline.core.storage import (
     code_fingerprint,
     fingerprint,
     item_files,
@@ -29,11 +29,11 @@ from pipeline.storage import (
     write_json,
     write_parquet,
 )
-from pipeline.trackfile import load_tracks
+from pipeline.pose.trackfile import load_tracks
 
 log = logging.getLogger("dance3d.clean")
 UNANNOTATED = ("accept", "skip")
-CODE = code_fingerprint(pipeline.clean, pipeline.manifests, pipeline.proposals)
+CODE = code_fingerprint(pipeline.annotate.clean, pipeline.annotate.manifests, pipeline.annotate.proposals)
 
 
 def clean_segment(job: tuple) -> dict:

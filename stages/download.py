@@ -11,16 +11,16 @@ from pathlib import Path
 
 import pyarrow as pa
 
-from pipeline.catalog import LEDGER, read_ledger
-from pipeline.download import DownloadOptions, LedgerRow, download_source, local_copies
-from pipeline.errors import RateLimitedError
-from pipeline.executor import run_items
-from pipeline.failures import Failure, check_failure_ratio, now, write_failures
-from pipeline.params import load_params, stage_params
-from pipeline.paths import RAW, SOURCES
-from pipeline.sources import Source, read_sources
-from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import remove_stale_temps, write_parquet
+from pipeline.core.errors import RateLimitedError
+from pipeline.core.executor import run_items
+from pipeline.core.failures import Failure, check_failure_ratio, now, write_failures
+from pipeline.core.params import load_params, stage_params
+from pipeline.core.paths import RAW, SOURCES
+from pipeline.core.stage import run_stage, setup_logging
+from pipeline.core.storage import remove_stale_temps, write_parquet
+from pipeline.ingest.catalog import LEDGER, read_ledger
+from pipeline.ingest.download import DownloadOptions, LedgerRow, download_source, local_copies
+from pipeline.ingest.sources import Source, read_sources
 
 log = logging.getLogger("dance3d.download")
 

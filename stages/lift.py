@@ -8,20 +8,20 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 
-import pipeline.lifting.infer
-from pipeline.errors import ModelMissingError
-from pipeline.itemstage import WorkItem, run_item_stage
-from pipeline.lifting.infer import Lifter, fill_low_confidence
-from pipeline.models.session import create_session
-from pipeline.motionfile import MotionClip, clips_to_table
-from pipeline.params import load_params, stage_params
-from pipeline.paths import CLEAN, POSE3D
-from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import code_fingerprint, fingerprint, item_files, read_meta, sha256_file, write_parquet
+import pipeline.motion.lifting.infer
+from pipeline.core.errors import ModelMissingError
+from pipeline.core.itemstage import WorkItem, run_item_stage
+from pipeline.core.params import load_params, stage_params
+from pipeline.core.paths import CLEAN, POSE3D
+from pipeline.core.stage import run_stage, setup_logging
+from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta, sha256_file, write_parquet
+from pipeline.motion.lifting.infer import Lifter, fill_low_confidence
+from pipeline.motion.motionfile import MotionClip, clips_to_table
+from pipeline.pose.models.session import create_session
 
 SCHEMA_VERSION = 1
 _STATE: dict = {}
-CODE = code_fingerprint(pipeline.lifting.infer)
+CODE = code_fingerprint(pipeline.motion.lifting.infer)
 
 
 def load_lifter(path: str, threads: int) -> None:

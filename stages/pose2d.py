@@ -6,31 +6,31 @@ import logging
 import sys
 from pathlib import Path
 
-import pipeline.media
-import pipeline.models.detector
-import pipeline.models.pose
-import pipeline.pose2d
-from pipeline.catalog import read_index
-from pipeline.itemstage import WorkItem, run_item_stage
-from pipeline.models.detector import RTMDetDetector
-from pipeline.models.pose import MoveNetPose, RTMPose
-from pipeline.models.registry import get_spec, resolve_model
-from pipeline.models.session import create_session
-from pipeline.params import load_params, stage_params
-from pipeline.paths import POSE2D, SEGMENTS
-from pipeline.pose2d import (
+import pipeline.ingest.media
+import pipeline.pose.models.detector
+import pipeline.pose.models.pose
+import pipeline.pose.pose2d
+from pipeline.core.itemstage import WorkItem, run_item_stage
+from pipeline.core.params import load_params, stage_params
+from pipeline.core.paths import POSE2D, SEGMENTS
+from pipeline.core.stage import run_stage, setup_logging
+from pipeline.core.storage import code_fingerprint, fingerprint, sha256_file, write_parquet
+from pipeline.ingest.catalog import read_index
+from pipeline.pose.models.detector import RTMDetDetector
+from pipeline.pose.models.pose import MoveNetPose, RTMPose
+from pipeline.pose.models.registry import get_spec, resolve_model
+from pipeline.pose.models.session import create_session
+from pipeline.pose.pose2d import (
     SCHEMA_VERSION,
     Pose2dOptions,
     estimate_segment,
     poses_to_table,
 )
-from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import code_fingerprint, fingerprint, sha256_file, write_parquet
 
 log = logging.getLogger("dance3d.pose2d")
 
 _MODELS: dict[str, object] = {}  # per worker process: sessions are built once, not per segment
-CODE = code_fingerprint(pipeline.pose2d, pipeline.models.detector, pipeline.models.pose, pipeline.media)
+CODE = code_fingerprint(pipeline.pose.pose2d, pipeline.pose.models.detector, pipeline.pose.models.pose, pipeline.ingest.media)
 
 
 def load_models(det_path: str, det_input: tuple, pose_path: str, pose_kind: str, pose_input: tuple,

@@ -8,17 +8,17 @@ from pathlib import Path
 
 import numpy as np
 
-import pipeline.resample
-from pipeline.itemstage import WorkItem, run_item_stage
-from pipeline.motionfile import MotionClip, clips_to_table, read_clips
-from pipeline.params import load_params, stage_params
-from pipeline.paths import MOTION24, SMOOTH
-from pipeline.resample import TARGET_FPS, resample_cubic
-from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import code_fingerprint, fingerprint, item_files, read_meta, write_parquet
+import pipeline.motion.resample
+from pipeline.core.itemstage import WorkItem, run_item_stage
+from pipeline.core.params import load_params, stage_params
+from pipeline.core.paths import MOTION24, SMOOTH
+from pipeline.core.stage import run_stage, setup_logging
+from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta, write_parquet
+from pipeline.motion.motionfile import MotionClip, clips_to_table, read_clips
+from pipeline.motion.resample import TARGET_FPS, resample_cubic
 
 SCHEMA_VERSION = 1
-CODE = code_fingerprint(pipeline.resample)
+CODE = code_fingerprint(pipeline.motion.resample)
 
 
 def resample_segment(job: tuple) -> dict:

@@ -12,16 +12,16 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 
-from pipeline.card import channel_stats, durations_csv, histogram_png, render_card
-from pipeline.catalog import read_index, read_ledger
-from pipeline.corpus import SCHEMA_VERSION, Window, split_of, window_starts, windows_table
-from pipeline.ids import video_id_of_segment
-from pipeline.motionfile import read_clips
-from pipeline.params import load_params, stage_params
-from pipeline.paths import AUDIO_FEATURES, CLEAN, CORPUS, METRICS, MOTION24, RAW, SEGMENTS, TRACKS
-from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import atomic_path, item_files, read_meta, write_json, write_parquet
-from pipeline.trackfile import load_tracks
+from pipeline.core.ids import video_id_of_segment
+from pipeline.core.params import load_params, stage_params
+from pipeline.core.paths import AUDIO_FEATURES, CLEAN, CORPUS, METRICS, MOTION24, RAW, SEGMENTS, TRACKS
+from pipeline.core.stage import run_stage, setup_logging
+from pipeline.core.storage import atomic_path, item_files, read_meta, write_json, write_parquet
+from pipeline.corpus.card import channel_stats, durations_csv, histogram_png, render_card
+from pipeline.corpus.windows import SCHEMA_VERSION, Window, split_of, window_starts, windows_table
+from pipeline.ingest.catalog import read_index, read_ledger
+from pipeline.motion.motionfile import read_clips
+from pipeline.pose.trackfile import load_tracks
 
 log = logging.getLogger("dance3d.shard")
 

@@ -9,19 +9,19 @@ from pathlib import Path
 
 import numpy as np
 
-import pipeline.motion_qc
-import pipeline.smoothing
-from pipeline.itemstage import WorkItem, run_item_stage
-from pipeline.motion_qc import limb_length_cv, mean_acceleration
-from pipeline.motionfile import clips_to_table, read_clips
-from pipeline.params import load_params, stage_params
-from pipeline.paths import METRICS, POSE3D, SMOOTH
-from pipeline.smoothing import hp_trend
-from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import code_fingerprint, fingerprint, item_files, read_meta, write_json, write_parquet
+import pipeline.motion.quality
+import pipeline.motion.smoothing
+from pipeline.core.itemstage import WorkItem, run_item_stage
+from pipeline.core.params import load_params, stage_params
+from pipeline.core.paths import METRICS, POSE3D, SMOOTH
+from pipeline.core.stage import run_stage, setup_logging
+from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta, write_json, write_parquet
+from pipeline.motion.motionfile import clips_to_table, read_clips
+from pipeline.motion.quality import limb_length_cv, mean_acceleration
+from pipeline.motion.smoothing import hp_trend
 
 SCHEMA_VERSION = 1
-CODE = code_fingerprint(pipeline.smoothing, pipeline.motion_qc)
+CODE = code_fingerprint(pipeline.motion.smoothing, pipeline.motion.quality)
 
 
 def smooth_segment(job: tuple) -> dict:

@@ -10,19 +10,19 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-import pipeline.qc
-import pipeline.tracking
-from pipeline.catalog import read_index
-from pipeline.itemstage import WorkItem, run_item_stage
-from pipeline.params import load_params, stage_params
-from pipeline.paths import POSE2D, QC, SEGMENTS, TRACKS
-from pipeline.qc import render_qc
-from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import code_fingerprint, fingerprint, read_meta, write_parquet
-from pipeline.tracking import TrackerOptions, assign_tracks
+import pipeline.pose.qc
+import pipeline.pose.tracking
+from pipeline.core.itemstage import WorkItem, run_item_stage
+from pipeline.core.params import load_params, stage_params
+from pipeline.core.paths import POSE2D, QC, SEGMENTS, TRACKS
+from pipeline.core.stage import run_stage, setup_logging
+from pipeline.core.storage import code_fingerprint, fingerprint, read_meta, write_parquet
+from pipeline.ingest.catalog import read_index
+from pipeline.pose.qc import render_qc
+from pipeline.pose.tracking import TrackerOptions, assign_tracks
 
 SCHEMA_VERSION = 1
-CODE = code_fingerprint(pipeline.tracking, pipeline.qc)
+CODE = code_fingerprint(pipeline.pose.tracking, pipeline.pose.qc)
 
 
 def track_segment(job: tuple) -> dict:

@@ -7,10 +7,10 @@ import sys
 from dataclasses import fields
 from pathlib import Path
 
-from pipeline.params import load_params, stage_params
-from pipeline.paths import CORPUS, METRICS
-from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import atomic_path
+from pipeline.core.params import load_params, stage_params
+from pipeline.core.paths import CORPUS, METRICS
+from pipeline.core.stage import run_stage, setup_logging
+from pipeline.core.storage import atomic_path
 
 
 def run(root: Path) -> None:

@@ -11,17 +11,17 @@ import sys
 from dataclasses import fields
 from pathlib import Path
 
-from pipeline.errors import InputError
-from pipeline.params import load_params, stage_params
-from pipeline.paths import LIFTER, METRICS
-from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import atomic_path, write_json
+from pipeline.core.errors import InputError
+from pipeline.core.params import load_params, stage_params
+from pipeline.core.paths import LIFTER, METRICS
+from pipeline.core.stage import run_stage, setup_logging
+from pipeline.core.storage import atomic_path, write_json
 
 log = logging.getLogger("dance3d.train_lifter")
 
 
 def config_from_params(params: dict):
-    from pipeline.lifting.train import LifterConfig
+    from pipeline.motion.lifting.train import LifterConfig
 
     known = {f.name for f in fields(LifterConfig)} - {"augment"}
     values = {k: tuple(v) if isinstance(v, list) else v for k, v in params.items() if k in known}
@@ -40,7 +40,7 @@ def mocap_root(root: Path, params: dict) -> Path:
 
 
 def run(root: Path) -> None:
-    from pipeline.lifting.train import export_onnx, load_mocap, split, train_lifter
+    from pipeline.motion.lifting.train import export_onnx, load_mocap, split, train_lifter
 
     params = stage_params(load_params(root / "params.yaml"), "train_lifter")
     cfg = config_from_params(params)

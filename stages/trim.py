@@ -9,22 +9,22 @@ from pathlib import Path
 
 import pyarrow as pa
 
-import pipeline.media
-import pipeline.trim
-from pipeline.catalog import INDEX, read_index, read_ledger
-from pipeline.errors import InputErrors
-from pipeline.executor import run_items
-from pipeline.failures import Failure, check_failure_ratio, now, write_failures
-from pipeline.media import probe
-from pipeline.params import load_params, stage_params
-from pipeline.paths import ANNOTATIONS, RAW, SEGMENTS
-from pipeline.segments import SegmentSpec, plan_segments
-from pipeline.stage import run_stage, setup_logging
-from pipeline.storage import code_fingerprint, fingerprint, remove_stale_temps, write_parquet
-from pipeline.trim import TrimOptions, cut_segment
+import pipeline.ingest.media
+import pipeline.ingest.trim
+from pipeline.core.errors import InputErrors
+from pipeline.core.executor import run_items
+from pipeline.core.failures import Failure, check_failure_ratio, now, write_failures
+from pipeline.core.params import load_params, stage_params
+from pipeline.core.paths import ANNOTATIONS, RAW, SEGMENTS
+from pipeline.core.stage import run_stage, setup_logging
+from pipeline.core.storage import code_fingerprint, fingerprint, remove_stale_temps, write_parquet
+from pipeline.ingest.catalog import INDEX, read_index, read_ledger
+from pipeline.ingest.media import probe
+from pipeline.ingest.segments import SegmentSpec, plan_segments
+from pipeline.ingest.trim import TrimOptions, cut_segment
 
 log = logging.getLogger("dance3d.trim")
-CODE = code_fingerprint(pipeline.trim, pipeline.media)
+CODE = code_fingerprint(pipeline.ingest.trim, pipeline.ingest.media)
 
 SCHEMA_VERSION = 1
 INDEX_SCHEMA = pa.schema(

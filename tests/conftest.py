@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.media import ffmpeg_exe
+from pipeline.ingest.media import ffmpeg_exe
 
 PROJECT = Path(__file__).resolve().parents[1]
 

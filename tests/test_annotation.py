@@ -13,11 +13,11 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from pipeline.annotation import check_manifests, seed_manifests
-from pipeline.errors import InputErrors
-from pipeline.pose2d import POSE2D_SCHEMA
-from pipeline.proposals import ProposalOptions
-from pipeline.storage import write_parquet
+from pipeline.annotate.commands import check_manifests, seed_manifests
+from pipeline.annotate.proposals import ProposalOptions
+from pipeline.core.errors import InputErrors
+from pipeline.core.storage import write_parquet
+from pipeline.pose.pose2d import POSE2D_SCHEMA
 from tests.conftest import ffmpeg, run_stages, set_params, write_sources
 from tests.test_tracking import person
 

@@ -9,7 +9,7 @@ import pyloudnorm
 import pytest
 import soundfile as sf
 
-from pipeline.audio import FEATURE_SR, FPS, LoudnessOptions, compute_features, normalise_loudness
+from pipeline.music.audio import FEATURE_SR, FPS, LoudnessOptions, compute_features, normalise_loudness
 from tests.conftest import ffmpeg
 
 
@@ -88,7 +88,7 @@ def ebur128(path: Path) -> dict[str, float]:
     import re
     import subprocess
 
-    from pipeline.media import ffmpeg_exe
+    from pipeline.ingest.media import ffmpeg_exe
 
     log = subprocess.run([ffmpeg_exe(), "-hide_banner", "-nostats", "-i", str(path), "-af", "ebur128", "-f", "null",
                           "-"], capture_output=True, text=True, check=True).stderr

@@ -6,10 +6,10 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.errors import InputError
-from pipeline.ids import check_id, id_path, segment_id, slug_id
-from pipeline.tables import neutralise_cell, read_csv, write_csv
-from pipeline.timecode import format_time, parse_time
+from pipeline.core.errors import InputError
+from pipeline.core.ids import check_id, id_path, segment_id, slug_id
+from pipeline.core.tables import neutralise_cell, read_csv, write_csv
+from pipeline.core.timecode import format_time, parse_time
 
 
 @pytest.mark.parametrize("bad", ["../x", "/abs", "a b", "a\x00b", "", "x" * 101, "é", "a.b"])
@@ -80,7 +80,7 @@ def _crash_on_three(x: int) -> int:
 
 
 def test_a_crashing_worker_fails_only_its_own_item() -> None:
-    from pipeline.executor import run_items
+    from pipeline.core.executor import run_items
 
     outcomes = {o.item: o for o in run_items(_crash_on_three, [1, 2, 3, 4, 5], workers=2)}
     assert {i: o.value for i, o in outcomes.items() if o.ok} == {1: 10, 2: 20, 4: 40, 5: 50}
@@ -97,7 +97,7 @@ def _segfault_on_b(x: str) -> str:
 
 
 def test_a_crashed_worker_names_its_item_the_signal_and_the_retry_command(tmp_path: Path, caplog) -> None:
-    from pipeline.itemstage import WorkItem, run_item_stage
+    from pipeline.core.itemstage import WorkItem, run_item_stage
 
     out = tmp_path / "out"
     items = [WorkItem(i, "fp", (out / f"{i}.parquet",), i) for i in "abc"]

@@ -11,7 +11,7 @@ import pytest
 import torch
 from torch.utils.data import DataLoader
 
-from pipeline.corpus import Window, split_of, window_starts
+from pipeline.corpus.windows import Window, split_of, window_starts
 from pipeline.train.dataset import WindowDataset
 from pipeline.train.loop import TrainConfig, train_tsmt
 from pipeline.train.model import TSMTConfig, TwoStreamMotionTransformer, generate

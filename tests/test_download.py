@@ -11,9 +11,9 @@ from typing import Iterator
 import pyarrow.parquet as pq
 import pytest
 
-from pipeline.errors import RateLimitedError
-from pipeline.failures import StageFailed
-from pipeline.storage import sha256_file
+from pipeline.core.errors import RateLimitedError
+from pipeline.core.failures import StageFailed
+from pipeline.core.storage import sha256_file
 from stages import download
 from tests.conftest import Mirror, set_params
 
@@ -152,7 +152,7 @@ def _demo_sources_served(media_dir: Path, corrupt: str = "") -> tuple[Mirror, st
     """A local server standing in for the demo's public host, and the demo's sources.csv pointed at it."""
     from urllib.parse import urlparse
 
-    from pipeline.sources import read_sources
+    from pipeline.ingest.sources import read_sources
     from tests.conftest import PROJECT
 
     demo = read_sources(PROJECT / "manifests/sources.csv", base_dir=PROJECT)
@@ -209,7 +209,7 @@ def test_local_copies_with_the_same_checksum_replace_the_network(project: Path, 
 
 
 def test_a_malformed_sha256_names_file_and_line(project: Path) -> None:
-    from pipeline.errors import InputError
+    from pipeline.core.errors import InputError
 
     write_sources(project, "")
     (project / "manifests/sources.csv").write_text("video_id,url,sha256\nx,https://example.org/x.mp4,abc\n")

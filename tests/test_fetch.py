@@ -10,7 +10,7 @@ from typing import Iterator
 import pytest
 
 from pipeline.cli import main
-from pipeline.models.fetch import MIRROR_ENV, ROUTES, FetchError, fetch_model, verify_outputs
+from pipeline.pose.models.fetch import MIRROR_ENV, ROUTES, FetchError, fetch_model, verify_outputs
 from tests.conftest import Mirror
 
 

@@ -9,14 +9,14 @@ import onnxruntime as ort
 import pytest
 import torch
 
-from pipeline.errors import InputError
-from pipeline.lifting.convert import convert_videopose3d, infer_architecture
-from pipeline.lifting.geometry import p_mpjpe
-from pipeline.lifting.infer import Lifter, fill_low_confidence
-from pipeline.lifting.model import TemporalModel
-from pipeline.lifting.train import LifterConfig, export_onnx, load_mocap, split, train_lifter
-from pipeline.mocap.skeleton import bone_lengths
-from pipeline.motion_qc import LIMBS
+from pipeline.core.errors import InputError
+from pipeline.motion.lifting.convert import convert_videopose3d, infer_architecture
+from pipeline.motion.lifting.geometry import p_mpjpe
+from pipeline.motion.lifting.infer import Lifter, fill_low_confidence
+from pipeline.motion.lifting.model import TemporalModel
+from pipeline.motion.lifting.train import LifterConfig, export_onnx, load_mocap, split, train_lifter
+from pipeline.motion.mocap.skeleton import bone_lengths
+from pipeline.motion.quality import LIMBS
 
 
 def test_official_coco_architecture_has_the_documented_size() -> None:
@@ -119,10 +119,10 @@ def test_trained_lifter_beats_the_mean_pose_on_held_out_mocap(tiny_lifter: tuple
 
 def test_lifting_the_dance_clip_gives_plausible_skeletons(tiny_lifter: tuple, dance_clip: Path,
                                                           models_dir: Path) -> None:
-    from pipeline.models.detector import RTMDetDetector
-    from pipeline.models.pose import MoveNetPose
-    from pipeline.models.session import create_session
-    from pipeline.pose2d import Pose2dOptions, estimate_segment
+    from pipeline.pose.models.detector import RTMDetDetector
+    from pipeline.pose.models.pose import MoveNetPose
+    from pipeline.pose.models.session import create_session
+    from pipeline.pose.pose2d import Pose2dOptions, estimate_segment
 
     _, path = tiny_lifter
     det = RTMDetDetector(create_session(models_dir / "rtmdet_nano_person_end2end.onnx"))

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeline.errors import MediaError
-from pipeline.media import count_frames, iter_frames, probe
+from pipeline.core.errors import MediaError
+from pipeline.ingest.media import count_frames, iter_frames, probe
 from tests.conftest import ffmpeg, make_test_video
 
 # Facts from shared/media/MEDIA.md (ffprobe): duration s, fps, width, height, has_audio, sample rate.

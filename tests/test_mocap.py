@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pipeline.lifting.geometry import look_at, project, to_camera
-from pipeline.mocap.skeleton import bone_lengths, coco_from_h36m
-from pipeline.mocap.sources import SOURCES, load_source, resample
-from pipeline.motion_qc import LIMBS
+from pipeline.motion.lifting.geometry import look_at, project, to_camera
+from pipeline.motion.mocap.skeleton import bone_lengths, coco_from_h36m
+from pipeline.motion.mocap.sources import SOURCES, load_source, resample
+from pipeline.motion.quality import LIMBS
 
 ACROBATICS = ("backflip", "cartwheel", "crawl", "roll", "getup", "sideflip", "spinkick", "humanoid3d_spin", "005_06")
 

@@ -12,17 +12,17 @@ import onnx
 import pytest
 from onnx import TensorProto, helper, numpy_helper
 
-from pipeline.errors import ModelMissingError
-from pipeline.models import registry
-from pipeline.models.detector import Detections, RTMDetDetector, largest
-from pipeline.models.pose import (
+from pipeline.core.errors import ModelMissingError
+from pipeline.pose.models import registry
+from pipeline.pose.models.detector import Detections, RTMDetDetector, largest
+from pipeline.pose.models.pose import (
     COCO17,
     MoveNetPose,
     RTMPose,
     crop_transform,
     decode_simcc,
 )
-from pipeline.models.session import create_session
+from pipeline.pose.models.session import create_session
 
 
 @pytest.fixture(scope="module")
@@ -143,7 +143,7 @@ def test_failed_download_is_one_clear_line(tmp_path, monkeypatch) -> None:
 
 
 def test_download_with_a_wrong_checksum_is_refused(tmp_path, monkeypatch) -> None:
-    from pipeline.models import fetch
+    from pipeline.pose.models import fetch
 
     fake = tmp_path / "m.onnx"
     fake.write_bytes(b"not the real model")

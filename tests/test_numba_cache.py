@@ -24,8 +24,8 @@ WORKER = """
 import sys
 from pathlib import Path
 import numpy as np
-from pipeline.audio import LoudnessOptions, compute_features, load_for_features, normalise_loudness
-from pipeline.smoothing import hp_trend
+from pipeline.music.audio import LoudnessOptions, compute_features, load_for_features, normalise_loudness
+from pipeline.motion.smoothing import hp_trend
 wav, out = Path(sys.argv[1]), Path(sys.argv[1] + ".normalised.wav")
 normalise_loudness(wav, out, LoudnessOptions())  # what the audio stage's worker does, in its order
 features = compute_features(load_for_features(out))

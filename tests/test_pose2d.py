@@ -9,13 +9,13 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from pipeline.errors import ModelMissingError
-from pipeline.media import probe
-from pipeline.models.detector import RTMDetDetector
-from pipeline.models.pose import COCO17, MoveNetPose
-from pipeline.models.session import create_session
-from pipeline.pose2d import Pose2dOptions, estimate_segment, poses_to_table
-from pipeline.storage import read_meta
+from pipeline.core.errors import ModelMissingError
+from pipeline.core.storage import read_meta
+from pipeline.ingest.media import probe
+from pipeline.pose.models.detector import RTMDetDetector
+from pipeline.pose.models.pose import COCO17, MoveNetPose
+from pipeline.pose.models.session import create_session
+from pipeline.pose.pose2d import Pose2dOptions, estimate_segment, poses_to_table
 from tests.conftest import (
     ffmpeg,
     make_test_video,

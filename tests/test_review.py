@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.proposals import ProposalOptions
-from pipeline.review.server import ReviewApp, serve
+from pipeline.annotate.proposals import ProposalOptions
+from pipeline.annotate.review.server import ReviewApp, serve
 from tests.conftest import PROJECT, make_test_video, skip_or_fail
 from tests.test_annotation import write_tracks
 

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.errors import InputErrors
-from pipeline.segments import plan_segments
+from pipeline.core.errors import InputErrors
+from pipeline.ingest.segments import plan_segments
 
 DURATIONS = {"vid": 30.0, "other": 10.0}
 HEADER = "video_id,start,end,label,note\n"

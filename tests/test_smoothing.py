@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from statsmodels.tsa.filters.hp_filter import hpfilter
 
-from pipeline.resample import grid_frames, resample_cubic
-from pipeline.smoothing import hp_trend
+from pipeline.motion.resample import grid_frames, resample_cubic
+from pipeline.motion.smoothing import hp_trend
 
 
 def reference(y: np.ndarray, lamb: float) -> np.ndarray:
@@ -22,7 +22,7 @@ def test_hp_trend_equals_statsmodels_on_random_series(n: int, lamb: float) -> No
 
 
 def test_hp_trend_equals_statsmodels_on_real_motion(mocap_dir) -> None:
-    from pipeline.mocap.sources import load_source
+    from pipeline.motion.mocap.sources import load_source
 
     seq = load_source(mocap_dir, "dancedb_ucy")[0]
     y = seq.h36m.reshape(seq.frames, -1)

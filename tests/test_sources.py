@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.errors import InputError
-from pipeline.sources import read_sources
+from pipeline.core.errors import InputError
+from pipeline.ingest.sources import read_sources
 
 HEADER = "video_id,url,channel,style,licence,note\n"
 

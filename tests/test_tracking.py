@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pipeline.tracking import (
+from pipeline.pose.tracking import (
     UNTRACKED,
     TrackerOptions,
     assign_tracks,

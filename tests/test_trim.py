@@ -9,9 +9,9 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from pipeline.media import iter_frames, probe
-from pipeline.segments import SegmentSpec
-from pipeline.trim import TrimOptions, cut_segment, output_size
+from pipeline.ingest.media import iter_frames, probe
+from pipeline.ingest.segments import SegmentSpec
+from pipeline.ingest.trim import TrimOptions, cut_segment, output_size
 from tests.conftest import make_test_video, set_params
 
 
@@ -95,7 +95,7 @@ def test_trim_stage_cuts_indexes_and_skips_up_to_date_segments(project: Path, me
 
 
 def test_trim_stage_refuses_invalid_annotations_naming_every_line(project: Path, media_dir: Path) -> None:
-    from pipeline.errors import InputErrors
+    from pipeline.core.errors import InputErrors
     from stages import download, trim
 
     _demo_project(project, media_dir, "dance,3,1\nghost,0,1\n")

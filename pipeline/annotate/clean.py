@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 
-from pipeline.manifests import Span
-from pipeline.trackfile import SegmentTracks
+from pipeline.annotate.manifests import Span
+from pipeline.pose.trackfile import SegmentTracks
 
 SCHEMA_VERSION = 1
 CLEAN_SCHEMA = pa.schema(

@@ -6,11 +6,11 @@ import logging
 from dataclasses import fields
 from pathlib import Path
 
-from pipeline.manifests import Problem, check_manifest_file, write_manifest
-from pipeline.paths import TRACK_MANIFESTS, TRACKS
-from pipeline.proposals import ProposalOptions, propose
-from pipeline.storage import item_files
-from pipeline.trackfile import load_tracks
+from pipeline.annotate.manifests import Problem, check_manifest_file, write_manifest
+from pipeline.annotate.proposals import ProposalOptions, propose
+from pipeline.core.paths import TRACK_MANIFESTS, TRACKS
+from pipeline.core.storage import item_files
+from pipeline.pose.trackfile import load_tracks
 
 log = logging.getLogger(__name__)
 

@@ -16,10 +16,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from pipeline.errors import InputError
-from pipeline.tables import read_csv, write_csv
-from pipeline.timecode import parse_time
-from pipeline.trackfile import SegmentTracks
+from pipeline.core.errors import InputError
+from pipeline.core.tables import read_csv, write_csv
+from pipeline.core.timecode import parse_time
+from pipeline.pose.trackfile import SegmentTracks
 
 EDITABLE = ("track_id", "start", "end", "keep", "note")
 INFO = ("frames", "mean_score", "box_height", "motion", "reason")
@@ -165,7 +165,7 @@ def recorded_tracks_fingerprint(path: Path) -> str:
 
 def check_manifest_file(path: Path, tracks_dir: Path, min_clip_seconds: float) -> tuple[list[Span], list[Problem]]:
     """Parse and check one manifest against ``tracks_dir/<segment_id>.parquet``."""
-    from pipeline.trackfile import load_tracks
+    from pipeline.pose.trackfile import load_tracks
 
     path = Path(path)
     tracks_file = Path(tracks_dir) / f"{path.stem}.parquet"

@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.manifests import Span
-from pipeline.trackfile import SegmentTracks
-from pipeline.tracking import oks_matrix
+from pipeline.annotate.manifests import Span
+from pipeline.pose.trackfile import SegmentTracks
+from pipeline.pose.tracking import oks_matrix
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ from typing import Any, Callable, Iterable, Iterator, Sequence
 
 from tqdm import tqdm
 
-from pipeline import numba_cache
+from pipeline.core import numba_cache
 
 log = logging.getLogger(__name__)
 

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pyarrow as pa
 
-from pipeline.errors import Dance3dError
-from pipeline.storage import write_parquet
+from pipeline.core.errors import Dance3dError
+from pipeline.core.storage import write_parquet
 
 FAILURES_FILE = "_failures.parquet"
 
@@ -43,7 +43,7 @@ def write_failures(folder: Path, stage: str, failures: list[Failure], total: int
     path = Path(folder) / FAILURES_FILE
     write_parquet(table, path, schema_version=1, extra={"stage": stage})
     if total is not None:
-        from pipeline.storage import write_json
+        from pipeline.core.storage import write_json
 
         by_class: dict[str, int] = {}
         for f in failures:

@@ -12,9 +12,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
-from pipeline.executor import run_items
-from pipeline.failures import Failure, check_failure_ratio, now, read_failures, write_failures
-from pipeline.storage import read_meta, remove_stale_temps
+from pipeline.core.executor import run_items
+from pipeline.core.failures import Failure, check_failure_ratio, now, read_failures, write_failures
+from pipeline.core.storage import read_meta, remove_stale_temps
 
 log = logging.getLogger(__name__)
 

@@ -7,7 +7,7 @@ from typing import Any
 
 import yaml
 
-from pipeline.errors import InputError
+from pipeline.core.errors import InputError
 
 COMMON_KEYS = ("workers", "executor", "max_failure_ratio", "ray")
 

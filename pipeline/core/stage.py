@@ -7,8 +7,8 @@ import sys
 from pathlib import Path
 from typing import Callable
 
-from pipeline.errors import Dance3dError, RateLimitedError
-from pipeline.failures import StageFailed
+from pipeline.core.errors import Dance3dError, RateLimitedError
+from pipeline.core.failures import StageFailed
 
 EXIT_BAD_INPUT = 2
 EXIT_RATE_LIMITED = 3

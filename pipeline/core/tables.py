@@ -8,8 +8,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Sequence
 
-from pipeline.errors import InputError
-from pipeline.storage import atomic_path
+from pipeline.core.errors import InputError
+from pipeline.core.storage import atomic_path
 
 
 @dataclass(frozen=True)

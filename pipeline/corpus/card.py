@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.mocap.skeleton import H36M17
-from pipeline.storage import atomic_path
+from pipeline.core.storage import atomic_path
+from pipeline.motion.mocap.skeleton import H36M17
 
 
 def channel_stats(ledger: list[dict], segments: list[dict], track_ids: dict[str, int], clip_minutes: dict[str, float],

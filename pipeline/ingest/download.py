@@ -14,11 +14,11 @@ from typing import Any
 
 import yt_dlp
 
-from pipeline.errors import MediaError, RateLimitedError
-from pipeline.ids import check_id, slug_id
-from pipeline.media import ffmpeg_exe, probe
-from pipeline.sources import Source
-from pipeline.storage import sha256_file
+from pipeline.core.errors import MediaError, RateLimitedError
+from pipeline.core.ids import check_id, slug_id
+from pipeline.core.storage import sha256_file
+from pipeline.ingest.media import ffmpeg_exe, probe
+from pipeline.ingest.sources import Source
 
 log = logging.getLogger(__name__)
 

@@ -18,7 +18,7 @@ from typing import Iterator, Sequence
 import av
 import numpy as np
 
-from pipeline.errors import MediaError
+from pipeline.core.errors import MediaError
 
 log = logging.getLogger(__name__)
 

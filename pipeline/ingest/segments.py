@@ -12,10 +12,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping
 
-from pipeline.errors import InputError, InputErrors
-from pipeline.ids import check_id, segment_id
-from pipeline.tables import read_csv
-from pipeline.timecode import parse_time
+from pipeline.core.errors import InputError, InputErrors
+from pipeline.core.ids import check_id, segment_id
+from pipeline.core.tables import read_csv
+from pipeline.core.timecode import parse_time
 
 REQUIRED = ("video_id", "start", "end")
 OPTIONAL = ("label", "note")

@@ -7,9 +7,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import urlparse
 
-from pipeline.errors import InputError
-from pipeline.ids import check_id
-from pipeline.tables import read_csv
+from pipeline.core.errors import InputError
+from pipeline.core.ids import check_id
+from pipeline.core.tables import read_csv
 
 REQUIRED = ("url",)
 OPTIONAL = ("video_id", "sha256", "channel", "style", "licence", "note")

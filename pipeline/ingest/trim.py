@@ -14,9 +14,9 @@ from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
 
-from pipeline.media import VideoInfo, probe, run_ffmpeg
-from pipeline.segments import SegmentSpec
-from pipeline.storage import atomic_path
+from pipeline.core.storage import atomic_path
+from pipeline.ingest.media import VideoInfo, probe, run_ffmpeg
+from pipeline.ingest.segments import SegmentSpec
 
 
 @dataclass(frozen=True)

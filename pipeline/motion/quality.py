@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.mocap.skeleton import H36M_BONES
+from pipeline.motion.mocap.skeleton import H36M_BONES
 
 LIMBS = [H36M_BONES.index(b) for b in ((1, 2), (2, 3), (4, 5), (5, 6), (11, 12), (12, 13), (14, 15), (15, 16))]
 

@@ -8,11 +8,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from pipeline.errors import MediaError
-from pipeline.media import ffmpeg_exe
-from pipeline.mocap.skeleton import H36M_BONES
-from pipeline.storage import atomic_path
-from pipeline.timecode import format_time
+from pipeline.core.errors import MediaError
+from pipeline.core.storage import atomic_path
+from pipeline.core.timecode import format_time
+from pipeline.ingest.media import ffmpeg_exe
+from pipeline.motion.mocap.skeleton import H36M_BONES
 
 LEFT = {4, 5, 6, 11, 12, 13}
 RIGHT = {1, 2, 3, 14, 15, 16}

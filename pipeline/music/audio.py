@@ -15,9 +15,9 @@ from pathlib import Path
 import librosa
 import numpy as np
 
-from pipeline.errors import MediaError
-from pipeline.media import ffmpeg_exe
-from pipeline.storage import atomic_path
+from pipeline.core.errors import MediaError
+from pipeline.core.storage import atomic_path
+from pipeline.ingest.media import ffmpeg_exe
 
 FPS = 24
 HOP = 512

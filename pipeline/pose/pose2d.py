@@ -18,8 +18,8 @@ from typing import Any, Callable, Iterator
 import numpy as np
 import pyarrow as pa
 
-from pipeline.media import iter_frames
-from pipeline.models.detector import Detections, Letterbox, largest
+from pipeline.ingest.media import iter_frames
+from pipeline.pose.models.detector import Detections, Letterbox, largest
 
 SCHEMA_VERSION = 1
 KEYPOINTS = 17

@@ -15,10 +15,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from pipeline.errors import MediaError
-from pipeline.media import ffmpeg_exe, iter_frames
-from pipeline.storage import atomic_path
-from pipeline.timecode import format_time
+from pipeline.core.errors import MediaError
+from pipeline.core.storage import atomic_path
+from pipeline.core.timecode import format_time
+from pipeline.ingest.media import ffmpeg_exe, iter_frames
 
 # COCO-17 limbs, drawn between keypoint pairs.
 SKELETON = ((15, 13), (13, 11), (16, 14), (14, 12), (11, 12), (5, 11), (6, 12), (5, 6), (5, 7), (6, 8),

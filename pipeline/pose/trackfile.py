@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow.parquet as pq
 
-from pipeline.storage import read_meta
+from pipeline.core.storage import read_meta
 
 
 @dataclass(frozen=True)

@@ -69,7 +69,7 @@ def train_tsmt(corpus: Path, cfg: TrainConfig) -> tuple[TwoStreamMotionTransform
 
 
 def save_model(model: TwoStreamMotionTransformer, path: Path) -> None:
-    from pipeline.storage import atomic_path
+    from pipeline.core.storage import atomic_path
 
     with atomic_path(Path(path)) as tmp:
         torch.save({"config": model.cfg.as_dict(), "state_dict": model.state_dict()}, tmp)

@@ -9,10 +9,10 @@ from pathlib import Path
 import pyarrow.parquet as pq
 import pytest
 
-from pipeline.errors import InputError, InputErrors, ModelMissingError
-from pipeline.manifests import Span, write_manifest
-from pipeline.params import load_params
-from pipeline.sources import read_sources
+from pipeline.annotate.manifests import Span, write_manifest
+from pipeline.core.errors import InputError, InputErrors, ModelMissingError
+from pipeline.core.params import load_params
+from pipeline.ingest.sources import read_sources
 from tests.conftest import PROJECT, ffmpeg, make_test_video, run_stages, set_params
 from tests.test_annotation import HEADER as MANIFEST_HEADER
 from tests.test_annotation import write_tracks
@@ -90,7 +90,7 @@ def test_failing_download_http_404(tmp_path: Path, media_dir: Path) -> None:
 
 @pytest.mark.parametrize("kind", ["huge_resolution", "rotated_phone", "variable_frame_rate"])
 def test_awkward_but_valid_videos_are_handled(tmp_path: Path, media_dir: Path, kind: str) -> None:
-    from pipeline.media import probe
+    from pipeline.ingest.media import probe
 
     src = tmp_path / f"{kind}.mp4"
     if kind == "huge_resolution":

@@ -22,8 +22,7 @@ from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
-from pipeline.ids import is_safe_id
-from pipeline.manifests import (
+from pipeline.annotate.manifests import (
     INFO,
     Span,
     check_manifest_file,
@@ -31,10 +30,11 @@ from pipeline.manifests import (
     recorded_tracks_fingerprint,
     write_manifest,
 )
-from pipeline.paths import QC, TRACK_MANIFESTS, TRACKS
-from pipeline.proposals import ProposalOptions, propose, track_stats
-from pipeline.storage import item_files
-from pipeline.trackfile import load_tracks
+from pipeline.annotate.proposals import ProposalOptions, propose, track_stats
+from pipeline.core.ids import is_safe_id
+from pipeline.core.paths import QC, TRACK_MANIFESTS, TRACKS
+from pipeline.core.storage import item_files
+from pipeline.pose.trackfile import load_tracks
 
 log = logging.getLogger(__name__)
 STATIC = Path(__file__).parent / "static"

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import torch
 
-from pipeline.errors import InputError
-from pipeline.lifting.model import TemporalModel
+from pipeline.core.errors import InputError
+from pipeline.motion.lifting.model import TemporalModel
 
 
 def infer_architecture(state: dict) -> dict:
@@ -80,7 +80,7 @@ def model_from_state(state: dict, source: Path | str = "checkpoint") -> Temporal
 
 def convert_videopose3d(checkpoint: Path, out: Path) -> TemporalModel:
     """Official checkpoint -> lifter ONNX (the COCO-input model: 17 COCO joints in, 17 H36M out)."""
-    from pipeline.lifting.train import export_onnx
+    from pipeline.motion.lifting.train import export_onnx
 
     model = model_from_state(load_official_state(Path(checkpoint)), checkpoint)
     export_onnx(model, out, {"converted_from": Path(checkpoint).name})

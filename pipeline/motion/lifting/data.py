@@ -15,9 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.lifting.geometry import look_at, normalise_screen, project, to_camera
-from pipeline.mocap.skeleton import COCO_FLIP, H36M_FLIP
-from pipeline.mocap.sources import MocapSequence
+from pipeline.motion.lifting.geometry import look_at, normalise_screen, project, to_camera
+from pipeline.motion.mocap.skeleton import COCO_FLIP, H36M_FLIP
+from pipeline.motion.mocap.sources import MocapSequence
 
 IMAGE_SIZES = ((1280, 720), (720, 1280), (1920, 1080), (1080, 1920), (640, 480), (768, 576), (384, 496), (640, 360))
 LR_PAIRS = ((5, 6), (7, 8), (9, 10), (11, 12), (13, 14), (15, 16))

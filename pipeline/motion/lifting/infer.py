@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.lifting.geometry import normalise_screen
-from pipeline.mocap.skeleton import COCO_FLIP, H36M_FLIP
+from pipeline.motion.lifting.geometry import normalise_screen
+from pipeline.motion.mocap.skeleton import COCO_FLIP, H36M_FLIP
 
 
 def fill_low_confidence(keypoints: np.ndarray, min_score: float) -> tuple[np.ndarray, np.ndarray]:
@@ -28,7 +28,7 @@ def fill_low_confidence(keypoints: np.ndarray, min_score: float) -> tuple[np.nda
 
 
 class Lifter:
-    """An ONNX lifter exported by ``pipeline.lifting.train.export_onnx`` (or the converter)."""
+    """An ONNX lifter exported by ``pipeline.motion.lifting.train.export_onnx`` (or the converter)."""
 
     def __init__(self, session) -> None:
         self.session = session

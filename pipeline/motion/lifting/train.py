@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from pipeline.lifting.data import AugmentOptions, PairSampler, validation_set
-from pipeline.lifting.geometry import mpjpe, p_mpjpe
-from pipeline.lifting.model import TemporalModel
-from pipeline.mocap.sources import SOURCES, MocapSequence, load_source, resample
+from pipeline.motion.lifting.data import AugmentOptions, PairSampler, validation_set
+from pipeline.motion.lifting.geometry import mpjpe, p_mpjpe
+from pipeline.motion.lifting.model import TemporalModel
+from pipeline.motion.mocap.sources import SOURCES, MocapSequence, load_source, resample
 
 log = logging.getLogger(__name__)
 
@@ -125,7 +125,7 @@ def export_onnx(model: TemporalModel, path: Path, extra: dict | None = None) -> 
     """ONNX with dynamic batch and time axes; receptive field and joints in its metadata."""
     import onnx
 
-    from pipeline.storage import atomic_path
+    from pipeline.core.storage import atomic_path
 
     model.eval()
     dummy = torch.zeros(1, model.receptive_field + 8, model.joints_in, 2)

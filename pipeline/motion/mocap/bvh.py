@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from pipeline.errors import InputError
+from pipeline.core.errors import InputError
 
 
 @dataclass

@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from pipeline.mocap.bvh import forward_kinematics, read_bvh
-from pipeline.mocap.skeleton import coco_from_h36m, head_frame, stature
+from pipeline.motion.mocap.bvh import forward_kinematics, read_bvh
+from pipeline.motion.mocap.skeleton import coco_from_h36m, head_frame, stature
 
 
 @dataclass
@@ -37,7 +37,7 @@ class BvhSource:
     folder: str
     unit: float               # metres per file unit
     z_up: bool                # True: convert (x, y, z) -> (x, z, -y)
-    position_mode: str        # replace | add (see pipeline.mocap.bvh)
+    position_mode: str        # replace | add (see pipeline.motion.mocap.bvh)
     joints: tuple             # 17 specs: "Name", ("mid", a, b), ("end", "Name"), ("top", share_or_metres)
 
 

@@ -29,8 +29,8 @@ from urllib.parse import urlparse
 import cv2
 import numpy as np
 
-from pipeline.errors import ModelMissingError
-from pipeline.storage import atomic_path
+from pipeline.core.errors import ModelMissingError
+from pipeline.core.storage import atomic_path
 
 log = logging.getLogger(__name__)
 
@@ -160,9 +160,9 @@ def figure_image(width: int = 320, height: int = 320) -> np.ndarray:
 
 def model_outputs(name: str, path: Path) -> dict[str, list]:
     """What the model computes on the test card, through the project's own wrappers."""
-    from pipeline.models.detector import letterbox
-    from pipeline.models.pose import MoveNetPose
-    from pipeline.models.session import create_session
+    from pipeline.pose.models.detector import letterbox
+    from pipeline.pose.models.pose import MoveNetPose
+    from pipeline.pose.models.session import create_session
 
     session = create_session(path)
     image = figure_image()
@@ -200,14 +200,14 @@ def fetch_model(name: str, folder: Path, *, force: bool = False, convert: bool =
     """Fetch model ``name`` into ``folder`` (its registry file name) and verify it by its outputs.
 
     ``convert=False`` only takes routes that need no conversion (the quick automatic path)."""
-    from pipeline.models.registry import get_spec
+    from pipeline.pose.models.registry import get_spec
 
     spec = get_spec(name)
     if name not in ROUTES:
         raise FetchError(f"model {name} has no download route ({spec.note})")
     target = Path(folder) / spec.file
     if not force:
-        from pipeline.models.registry import model_dirs
+        from pipeline.pose.models.registry import model_dirs
 
         for present in [target] + [d / spec.file for d in model_dirs(Path(folder).parent)]:
             if present.is_file():

@@ -1,7 +1,7 @@
 """The model registry: each model's file, checksum, official source and input spec.
 
 Lookup order for a model file: ``$DANCE3D_MODELS``, the project's ``models/`` folder,
-then a download from its route (``pipeline.models.fetch``: sha256 checked, outputs
+then a download from its route (``pipeline.pose.models.fetch``: sha256 checked, outputs
 verified). Models whose route needs a conversion are fetched by ``dance3d models fetch``,
 never silently during a stage. A model that cannot be found gives one line saying which
 file to put where.
@@ -14,7 +14,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from pipeline.errors import ModelMissingError
+from pipeline.core.errors import ModelMissingError
 
 log = logging.getLogger(__name__)
 
@@ -84,7 +84,7 @@ def resolve_model(name: str, project_root: Path | None = None, *, allow_download
             return candidate
     target = dirs[-1] / spec.file
     where = " or ".join(str(d) for d in dirs)
-    from pipeline.models.fetch import ROUTES, FetchError, fetch_model
+    from pipeline.pose.models.fetch import ROUTES, FetchError, fetch_model
 
     routes = ROUTES.get(name, ())
     if not routes:
