@@ -19,9 +19,9 @@ import pyarrow.parquet as pq
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from pipeline.corpus.build import write_shards  # noqa: E402
 from pipeline.corpus.windows import Window  # noqa: E402
 from pipeline.train.dataset import WindowDataset, shard_files  # noqa: E402
-from stages.shard import write_shards  # noqa: E402
 
 
 def build(root: Path, n: int, frames: int) -> Path:

@@ -29,7 +29,7 @@ from pipeline.ingest.media import ffmpeg_exe, iter_frames, probe  # noqa: E402
 from pipeline.pose.models.detector import RTMDetDetector, largest  # noqa: E402
 from pipeline.pose.models.pose import MoveNetPose, crop_transform, warp  # noqa: E402
 from pipeline.pose.models.session import create_session  # noqa: E402
-from pipeline.pose.pose2d import Pose2dOptions, estimate_segment, poses_to_table  # noqa: E402
+from pipeline.pose.pose2d import Pose2dOptions, collect_poses, estimate_segment  # noqa: E402
 from pipeline.pose.tracking import assign_tracks  # noqa: E402
 
 
@@ -40,10 +40,8 @@ def load_models(models: Path):
 
 
 def stage_work(clip: Path, fps: float, det, pose) -> int:
-    table, frames = poses_to_table(estimate_segment(clip, fps, det, pose, Pose2dOptions()))
-    boxes = np.asarray(table.column("box").combine_chunks().flatten()).reshape(-1, 4)
-    kps = np.asarray(table.column("keypoints").combine_chunks().flatten()).reshape(-1, 17, 3)
-    assign_tracks(table.column("frame").to_numpy(), boxes, kps)
+    poses, frames = collect_poses(estimate_segment(clip, fps, det, pose, Pose2dOptions()))
+    assign_tracks(poses.frame, poses.box, poses.keypoints)
     return frames
 
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 
-from pipeline.core.failures import FAILURES_FILE
+from pipeline.core.failures import FAILURES_FILE, read_failures
 from pipeline.core.paths import AUDIO_FEATURES, CLEAN, CORPUS, MOTION24, POSE2D, POSE3D, RAW, SEGMENTS, SMOOTH, TRACKS
 from pipeline.core.storage import item_files
 from pipeline.ingest.catalog import read_index, read_ledger
@@ -46,8 +46,8 @@ def summarise(root: Path) -> str:
             windows = sum(pq.read_metadata(p).num_rows for p in shards)
             lines.append(f"corpus {split}: {windows} windows in {len(shards)} shards")
     for failures in sorted((root / "data").glob(f"*/{FAILURES_FILE}")) if (root / "data").exists() else []:
-        rows = pq.read_table(failures).to_pylist()
+        rows = read_failures(failures.parent)
         if rows:
             lines.append(f"failures in {failures.parent.name} ({len(rows)}):")
-            lines.extend(f"  {r['item']}: {r['error_class']}: {r['message']}" for r in rows)
+            lines.extend(f"  {r.item}: {r.error_class}: {r.message}" for r in rows)
     return "\n".join(lines)

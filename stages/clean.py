@@ -6,15 +6,13 @@ import logging
 import sys
 from pathlib import Path
 
-import pyarrow.parquet as pq
-
 import pipeline.annotate.clean
+import pipeline.annotate.clipfile
 import pipeline.annotate.manifests
 import pipeline.annotate.proposals
-from pipeline.annotate.clean import SCHEMA_VERSION, CleanOptions, apply_manifest, clips_table
+from pipeline.annotate.clean import CleanJob, CleanOptions, clean_segment
+from pipeline.annotate.clipfile import SCHEMA_VERSION, read_clean
 from pipeline.annotate.commands import check_manifests, proposal_options, tracked_segments
-from pipeline.annotate.manifests import parse_manifest
-from pipeline.annotate.proposals import propose
 from pipeline.core.errors import InputError, InputErrors
 from pipeline.core.itemstage import WorkItem, run_item_stage
 from pipeline.core.params import load_params, stage_params
@@ -27,32 +25,12 @@ from pipeline.core.storage import (
     read_meta,
     sha256_file,
     write_json,
-    write_parquet,
 )
-from pipeline.pose.trackfile import load_tracks
 
 log = logging.getLogger("dance3d.clean")
 UNANNOTATED = ("accept", "skip")
-CODE = code_fingerprint(pipeline.annotate.clean, pipeline.annotate.manifests, pipeline.annotate.proposals)
-
-
-def clean_segment(job: tuple) -> dict:
-    tracks_file, manifest, out, opts, proposal_opts, params, inputs, fp = job
-    tracks = load_tracks(tracks_file)
-    if manifest is not None:  # already checked by the stage before any work was handed out
-        spans, _ = parse_manifest(manifest)
-        source = "manifest"
-    else:
-        spans, source = propose(tracks, proposal_opts), "proposal"
-    result = apply_manifest(tracks, spans, opts)
-    extra = {"fingerprint": fp, "segment_id": tracks.segment_id, "fps": tracks.fps, "width": tracks.width,
-             "height": tracks.height, "frames": tracks.frames_total, "spans_from": source,
-             "dropped_short": result.dropped_short}
-    write_parquet(clips_table(result.clips, tracks.fps), out, schema_version=SCHEMA_VERSION, params=params,
-                  inputs=inputs, extra=extra)
-    return {"clips": len(result.clips), "clip_frames": sum(len(c.frame) for c in result.clips),
-            "dropped_short": result.dropped_short, "interpolated_frames": result.interpolated_frames,
-            "source": source, "fps": tracks.fps}
+CODE = code_fingerprint(pipeline.annotate.clean, pipeline.annotate.clipfile, pipeline.annotate.manifests,
+                        pipeline.annotate.proposals)
 
 
 def run(root: Path) -> None:
@@ -79,7 +57,7 @@ def run(root: Path) -> None:
                   "manifest": sha256_file(manifest) if manifest else f"proposal:{proposal_opts}"}
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out = root / CLEAN / f"{seg_id}.parquet"
-        job = (tracks_file, manifest, out, opts, proposal_opts, params, inputs, fp)
+        job = CleanJob(tracks_file, manifest, out, opts, proposal_opts, params, inputs, fp)
         items.append(WorkItem(seg_id, fp, (out,), job))
     if skipped:
         log.info("skipping %d segments without a manifest (clean.unannotated: skip): %s", len(skipped),
@@ -108,14 +86,14 @@ def _write_metrics(root: Path, skipped: list[str]) -> None:
     sources = {"manifest": 0, "proposal": 0}
     minutes = 0.0
     for path in item_files(root / CLEAN):
-        meta = read_meta(path)
-        table = pq.read_table(path, columns=["clip_id", "interpolated"])
-        clips += len(set(table.column("clip_id").to_pylist()))
-        clip_frames += table.num_rows
-        interpolated += sum(table.column("interpolated").to_pylist())
-        minutes += table.num_rows / meta["fps"] / 60
-        sources[meta.get("spans_from", "manifest")] += 1
-        dropped += int(meta.get("dropped_short", 0))
+        clean = read_clean(path)
+        frames = sum(len(c.frame) for c in clean.clips)
+        clips += len(clean.clips)
+        clip_frames += frames
+        interpolated += int(sum(c.interpolated.sum() for c in clean.clips))
+        minutes += frames / clean.segment.fps / 60
+        sources[clean.spans_from] += 1
+        dropped += clean.dropped_short
     metrics = {"segments_from_manifests": sources["manifest"], "segments_from_proposals": sources["proposal"],
                "segments_skipped": len(skipped), "clips": clips, "clip_minutes": round(minutes, 3),
                "interpolated_frame_share": round(interpolated / clip_frames, 4) if clip_frames else 0.0,

@@ -9,33 +9,18 @@ import sys
 import threading
 from pathlib import Path
 
-import pyarrow as pa
-
 from pipeline.core.errors import RateLimitedError
 from pipeline.core.executor import run_items
 from pipeline.core.failures import Failure, check_failure_ratio, now, write_failures
 from pipeline.core.params import load_params, stage_params
 from pipeline.core.paths import RAW, SOURCES
 from pipeline.core.stage import run_stage, setup_logging
-from pipeline.core.storage import remove_stale_temps, write_parquet
-from pipeline.ingest.catalog import LEDGER, read_ledger
+from pipeline.core.storage import remove_stale_temps
+from pipeline.ingest.catalog import read_ledger, write_ledger
 from pipeline.ingest.download import DownloadOptions, LedgerRow, download_source, local_copies
 from pipeline.ingest.sources import Source, read_sources
 
 log = logging.getLogger("dance3d.download")
-
-LEDGER_SCHEMA = pa.schema(
-    [
-        ("url", pa.string()), ("video_id", pa.string()), ("status", pa.string()),
-        ("error_class", pa.string()), ("error_message", pa.string()),
-        ("path", pa.string()), ("info_path", pa.string()), ("size", pa.int64()), ("sha256", pa.string()),
-        ("fps", pa.float64()), ("duration", pa.float64()), ("width", pa.int32()), ("height", pa.int32()),
-        ("has_audio", pa.bool_()), ("title", pa.string()), ("channel", pa.string()), ("uploader", pa.string()),
-        ("upload_date", pa.string()), ("licence", pa.string()), ("style", pa.string()),
-        ("tags", pa.list_(pa.string())), ("attempts", pa.int32()),
-    ]
-)
-
 
 def _is_done(row: dict | None, raw_dir: Path) -> bool:
     if not row or row["status"] != "ok" or not row["path"]:
@@ -45,9 +30,7 @@ def _is_done(row: dict | None, raw_dir: Path) -> bool:
 
 
 def _write_ledger(raw_dir: Path, sources: list[Source], rows: dict[str, dict], params: dict) -> None:
-    ordered = [rows[s.url] for s in sources if s.url in rows]
-    table = pa.Table.from_pylist(ordered, schema=LEDGER_SCHEMA)
-    write_parquet(table, raw_dir / LEDGER, schema_version=1, params=params)
+    write_ledger(raw_dir, [rows[s.url] for s in sources if s.url in rows], params)
 
 
 def run(root: Path) -> None:

@@ -4,10 +4,7 @@ coordinate, lambda from params), plus per-clip QC in the file metadata and metri
 from __future__ import annotations
 
 import sys
-from dataclasses import replace
 from pathlib import Path
-
-import numpy as np
 
 import pipeline.motion.quality
 import pipeline.motion.smoothing
@@ -15,34 +12,11 @@ from pipeline.core.itemstage import WorkItem, run_item_stage
 from pipeline.core.params import load_params, stage_params
 from pipeline.core.paths import METRICS, POSE3D, SMOOTH
 from pipeline.core.stage import run_stage, setup_logging
-from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta, write_json, write_parquet
-from pipeline.motion.motionfile import clips_to_table, read_clips
-from pipeline.motion.quality import limb_length_cv, mean_acceleration
-from pipeline.motion.smoothing import hp_trend
+from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta, write_json
+from pipeline.motion.motionfile import SCHEMA_VERSION
+from pipeline.motion.smoothing import SmoothJob, smooth_segment
 
-SCHEMA_VERSION = 1
 CODE = code_fingerprint(pipeline.motion.smoothing, pipeline.motion.quality)
-
-
-def smooth_segment(job: tuple) -> dict:
-    src, out, lamb, params, inputs, fp = job
-    meta = read_meta(src)
-    fps = float(meta["fps"])
-    clips, qc = [], {}
-    for clip in read_clips(src):
-        trend = hp_trend(clip.joints.reshape(len(clip.joints), -1), lamb).reshape(clip.joints.shape)
-        clips.append(replace(clip, joints=trend.astype(np.float32)))
-        qc[clip.clip_id] = {
-            "frames": int(len(clip.frame)),
-            "mean_acc_before": round(mean_acceleration(clip.joints, fps), 3),
-            "mean_acc_after": round(mean_acceleration(trend, fps), 3),
-            "limb_cv": round(limb_length_cv(trend), 4),
-            "interpolated_share": round(float(clip.interpolated.mean()), 4),
-        }
-    extra = {"fingerprint": fp, "clip_qc": qc, **{k: meta.get(k) for k in ("segment_id", "fps", "width", "height")}}
-    write_parquet(clips_to_table(clips), out, schema_version=SCHEMA_VERSION, params=params, inputs=inputs,
-                  extra=extra)
-    return qc
 
 
 def run(root: Path) -> None:
@@ -53,7 +27,7 @@ def run(root: Path) -> None:
         inputs = {"pose3d": read_meta(src).get("fingerprint", "")}
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out = root / SMOOTH / src.name
-        items.append(WorkItem(src.stem, fp, (out,), (src, out, lamb, params, inputs, fp)))
+        items.append(WorkItem(src.stem, fp, (out,), SmoothJob(src, out, lamb, params, inputs, fp)))
     run_item_stage("smooth", items, smooth_segment, out_dirs=[root / SMOOTH], params=params)
     write_motion_metrics(root)
 

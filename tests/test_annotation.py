@@ -9,15 +9,15 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.parquet as pq
 import pytest
 
+from pipeline.annotate.clipfile import read_clean
 from pipeline.annotate.commands import check_manifests, seed_manifests
 from pipeline.annotate.proposals import ProposalOptions
 from pipeline.core.errors import InputErrors
-from pipeline.core.storage import write_parquet
-from pipeline.pose.pose2d import POSE2D_SCHEMA
+from pipeline.pose.pose2dfile import Poses, SegmentInfo
+from pipeline.pose.trackfile import read_tracks
+from pipeline.pose.trackfile import write_tracks as write_tracks_file
 from tests.conftest import ffmpeg, run_stages, set_params, write_sources
 from tests.test_tracking import person
 
@@ -34,18 +34,14 @@ def write_tracks(root: Path, seg_id: str, people: dict[int, list[int]], fps: flo
             rows.append((f, track_id, box, kp))
     rows.sort(key=lambda r: (r[0], r[1]))
     n = len(rows)
-    table = pa.Table.from_arrays([
-        pa.array([r[0] for r in rows], pa.int32()), pa.array([r[0] / fps for r in rows], pa.float64()),
-        pa.array([0] * n, pa.int8()),
-        pa.FixedSizeListArray.from_arrays(pa.array(np.ravel([r[2] for r in rows]), pa.float32()), 4),
-        pa.array([0.9] * n, pa.float32()),
-        pa.FixedSizeListArray.from_arrays(pa.array(np.ravel([r[3] for r in rows]), pa.float32()), 51),
-        pa.array([True] * n, pa.bool_()),
-    ], schema=POSE2D_SCHEMA).append_column("track_id", pa.array([r[1] for r in rows], pa.int32()))
+    frame = np.array([r[0] for r in rows])
+    poses = Poses(frame=frame, time=frame / fps, person=np.zeros(n), box=np.array([r[2] for r in rows]),
+                  box_score=np.full(n, 0.9), keypoints=np.array([r[3] for r in rows]).reshape(n, 17, 3),
+                  detected=np.ones(n, bool))
     path = root / "data/tracks" / f"{seg_id}.parquet"
     frames_total = max(max(f) for f in people.values()) + 1
-    write_parquet(table, path, schema_version=1, extra={"segment_id": seg_id, "fps": fps, "frames": frames_total,
-                                                        "width": 1280, "height": 720, "fingerprint": "t1"})
+    write_tracks_file(path, poses, np.array([r[1] for r in rows]), SegmentInfo(seg_id, fps, frames_total, 1280, 720),
+                      fingerprint="t1", params={}, inputs={})
     return path
 
 
@@ -124,9 +120,8 @@ def test_check_command_exit_codes(seg: Path) -> None:
 
 def clips_of(root: Path, seg_id: str = "vid_000") -> dict[str, tuple[int, int, int]]:
     """clip id -> (first frame, last frame, interpolated frames)."""
-    table = pq.read_table(root / "data/clean" / f"{seg_id}.parquet").to_pandas()
-    return {cid: (int(g.frame.min()), int(g.frame.max()), int(g.interpolated.sum()))
-            for cid, g in table.groupby("clip_id")}
+    clips = read_clean(root / "data/clean" / f"{seg_id}.parquet").clips
+    return {c.clip_id: (int(c.frame.min()), int(c.frame.max()), int(c.interpolated.sum())) for c in clips}
 
 
 def test_editing_a_manifest_changes_clean_output_exactly(seg: Path) -> None:
@@ -148,12 +143,10 @@ def test_short_gaps_are_filled_long_gaps_split_short_clips_drop(project: Path) -
     set_params(project, "clean", max_gap=12, min_clip_seconds=2.0)
     run_stages(project, "clean")
     assert clips_of(project) == {"vid_000_1_0": (0, 149, 5)}  # the 30-frame gaps split; short pieces drop
-    table = pq.read_table(project / "data/clean/vid_000.parquet").to_pandas()
-    filled = table[table.interpolated]
-    assert sorted(filled.frame) == [50, 51, 52, 53, 54]
-    before, after = table[table.frame == 49].iloc[0], table[table.frame == 55].iloc[0]
-    middle = table[table.frame == 52].iloc[0]
-    assert np.allclose(middle.box, before.box + (after.box - before.box) * 3 / 6, atol=1e-3)
+    (clip,) = read_clean(project / "data/clean/vid_000.parquet").clips
+    assert sorted(clip.frame[clip.interpolated]) == [50, 51, 52, 53, 54]
+    box = dict(zip(clip.frame.tolist(), clip.box))
+    assert np.allclose(box[52], box[49] + (box[55] - box[49]) * 3 / 6, atol=1e-3)
     metrics = json.loads((project / "metrics/clean.json").read_text())
     assert metrics["dropped_short_clips"] == 2  # 180-199 (0.8 s) and 230-239
 
@@ -203,8 +196,8 @@ def test_seeding_keeps_the_dancers_and_rejects_the_static_group(project: Path, d
     set_params(project, "trim", unannotated="whole")
     run_stages(project, "download", "trim", "pose2d", "track")
     (path,), _ = seed_manifests(project, ProposalOptions())
-    rows = pq.read_table(project / "data/tracks/stage_000.parquet").to_pandas()
-    centre_y = {t: float(np.median([(b[1] + b[3]) / 2 for b in g.box])) for t, g in rows.groupby("track_id") if t >= 0}
+    tracks = read_tracks(project / "data/tracks/stage_000.parquet")
+    centre_y = {t: float(np.median(tracks.box[tracks.of(t)][:, [1, 3]].mean(1))) for t in tracks.ids}
     manifest = list(csv.DictReader(line for line in path.read_text().splitlines() if not line.startswith("#")))
     dancers = {int(r["track_id"]) for r in manifest if centre_y[int(r["track_id"])] < 496}
     seated = {int(r["track_id"]) for r in manifest if centre_y[int(r["track_id"])] >= 496}

@@ -11,11 +11,11 @@ import pytest
 import torch
 from torch.utils.data import DataLoader
 
+from pipeline.corpus.build import write_shards
 from pipeline.corpus.windows import Window, split_of, window_starts
 from pipeline.train.dataset import WindowDataset
 from pipeline.train.loop import TrainConfig, train_tsmt
 from pipeline.train.model import TSMTConfig, TwoStreamMotionTransformer, generate
-from stages.shard import write_shards
 
 
 def test_a_45_s_clip_gives_three_windows_and_short_clips_none() -> None:

@@ -5,21 +5,22 @@ from __future__ import annotations
 import http.server
 import json
 import threading
+from dataclasses import asdict
 from pathlib import Path
 from typing import Iterator
 
-import pyarrow.parquet as pq
 import pytest
 
 from pipeline.core.errors import RateLimitedError
-from pipeline.core.failures import StageFailed
+from pipeline.core.failures import StageFailed, read_failures
 from pipeline.core.storage import sha256_file
+from pipeline.ingest.catalog import read_ledger
 from stages import download
 from tests.conftest import Mirror, set_params
 
 
 def ledger(project: Path) -> dict[str, dict]:
-    return {r["video_id"] or r["url"]: r for r in pq.read_table(project / "data/raw/ledger.parquet").to_pylist()}
+    return {r["video_id"] or r["url"]: r for r in read_ledger(project / "data/raw").values()}
 
 
 def write_sources(project: Path, rows: str) -> None:
@@ -68,7 +69,7 @@ def test_missing_file_and_malformed_url_are_failed_rows_not_crashes(project: Pat
     assert rows["bad"]["error_class"] == "invalid_url"
     assert rows["bad"]["error_message"].endswith(
         "sources.csv:4: url 'htp:/nowhere' has unsupported scheme 'htp' (use http, https or file)")
-    failures = pq.read_table(project / "data/raw/_failures.parquet").to_pylist()
+    failures = [asdict(f) for f in read_failures(project / "data/raw")]
     assert [f["item"] for f in failures] == ["manifests/sources.csv:3", "manifests/sources.csv:4"]
     summary = json.loads((project / "metrics/failures_download.json").read_text())
     assert summary == {"items": 3, "failed": 2, "failed_share": 0.6667,

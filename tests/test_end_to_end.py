@@ -13,6 +13,10 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
+from pipeline.annotate.clipfile import read_clean
+from pipeline.ingest.catalog import read_index, read_ledger
+from pipeline.motion.motionfile import read_motion
+from pipeline.pose.trackfile import read_tracks
 from tests.conftest import PROJECT, set_params
 
 
@@ -48,24 +52,22 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     first = _dvc(root, "repro")
     assert first.returncode == 0, first.stderr[-3000:]
 
-    ledger = pq.read_table(root / "data/raw/ledger.parquet").to_pylist()
+    ledger = list(read_ledger(root / "data/raw").values())
     assert [(r["video_id"], r["status"]) for r in ledger] == [
         ("musepose_dance", "ok"), ("taiji", "ok"), ("raga_trio", "ok"), ("solo_dance", "ok")]
-    index = pq.read_table(root / "data/segments/index.parquet").to_pylist()
+    index = list(read_index(root / "data/segments").values())
     assert [r["segment_id"] for r in index] == ["musepose_dance_000", "solo_dance_000", "solo_dance_001", "taiji_000"]
     assert all((root / "data/segments" / r["path"]).stat().st_size > 0 for r in index)
 
     for seg in index:
-        tracks = pq.read_table(root / "data/tracks" / f"{seg['segment_id']}.parquet")
-        ids = tracks.column("track_id").to_numpy()
+        ids = read_tracks(root / "data/tracks" / f"{seg['segment_id']}.parquet").track_id
         assert (ids == 1).sum() >= 0.9 * seg["frames"], seg["segment_id"]  # one dancer, one long track
         assert (root / "data/qc" / f"{seg['segment_id']}.mp4").stat().st_size > 0
 
     for seg in index:
-        motion = pq.read_table(root / "data/motion24" / f"{seg['segment_id']}.parquet")
-        times = motion.column("time").to_numpy()
-        assert motion.num_rows >= 0.9 * seg["frames"] / seg["fps"] * 24
-        assert np.allclose(times, motion.column("frame").to_numpy() / 24)
+        clips = read_motion(root / "data/motion24" / f"{seg['segment_id']}.parquet").clips
+        assert sum(len(c.frame) for c in clips) >= 0.9 * seg["frames"] / seg["fps"] * 24
+        assert all(np.allclose(c.time, c.frame / 24) for c in clips)
     lifter = json.loads((root / "metrics/lifter.json").read_text())
     assert lifter["val_mpjpe_mm"] > 0 and lifter["steps"] == 150
 
@@ -98,8 +100,8 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     assert third.returncode == 0, third.stderr[-3000:]
     ran = [line.split("'")[1] for line in third.stdout.splitlines() if line.startswith("Running stage")]
     assert ran == ["clean", "lift", "smooth", "resample", "shard", "train"]
-    assert not pq.read_table(root / "data/clean/solo_dance_001.parquet").num_rows
-    assert pq.read_table(root / "data/clean/solo_dance_000.parquet").num_rows == 270
+    assert not read_clean(root / "data/clean/solo_dance_001.parquet").clips
+    assert sum(len(c.frame) for c in read_clean(root / "data/clean/solo_dance_000.parquet").clips) == 270
 
     status = subprocess.run([sys.executable, "-m", "pipeline.cli", "status"], cwd=root,
                             capture_output=True, text=True, check=True).stdout

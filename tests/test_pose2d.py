@@ -6,16 +6,17 @@ import json
 from pathlib import Path
 
 import numpy as np
-import pyarrow.parquet as pq
 import pytest
 
 from pipeline.core.errors import ModelMissingError
-from pipeline.core.storage import read_meta
+from pipeline.core.failures import read_failures
 from pipeline.ingest.media import probe
 from pipeline.pose.models.detector import RTMDetDetector
 from pipeline.pose.models.pose import COCO17, MoveNetPose
 from pipeline.pose.models.session import create_session
-from pipeline.pose.pose2d import Pose2dOptions, estimate_segment, poses_to_table
+from pipeline.pose.pose2d import Pose2dOptions, collect_poses, estimate_segment
+from pipeline.pose.pose2dfile import read_pose2d
+from pipeline.pose.trackfile import read_tracks
 from tests.conftest import (
     ffmpeg,
     make_test_video,
@@ -32,15 +33,9 @@ def models(models_dir: Path):
     return det, pose
 
 
-def _arrays(table):
-    boxes = np.asarray(table.column("box").combine_chunks().flatten()).reshape(-1, 4)
-    kps = np.asarray(table.column("keypoints").combine_chunks().flatten()).reshape(-1, 17, 3)
-    return table.column("frame").to_numpy(), boxes, kps
-
-
 def test_dancer_found_in_nearly_every_frame_with_keypoints_in_the_box(dance_clip: Path, models) -> None:
-    table, frames = poses_to_table(estimate_segment(dance_clip, 24.0, *models, Pose2dOptions()))
-    frame, boxes, kps = _arrays(table)
+    poses, frames = collect_poses(estimate_segment(dance_clip, 24.0, *models, Pose2dOptions()))
+    frame, boxes, kps = poses.frame, poses.box, poses.keypoints
     assert frames == 288
     assert len(np.unique(frame)) >= 0.95 * frames
     confident = kps[:, :, 2] >= 0.3
@@ -48,7 +43,7 @@ def test_dancer_found_in_nearly_every_frame_with_keypoints_in_the_box(dance_clip
               & (kps[:, :, 1] >= boxes[:, None, 1] - 5) & (kps[:, :, 1] <= boxes[:, None, 3] + 5))
     assert inside[confident].mean() >= 0.97
     # She faces the camera: her left shoulder and hip are on the image's right.
-    top = table.column("person").to_numpy() == 0
+    top = poses.person == 0
     assert (kps[top, 5, 0] > kps[top, 6, 0]).mean() >= 0.9
     assert (kps[top, 11, 0] > kps[top, 12, 0]).mean() >= 0.9
 
@@ -67,9 +62,8 @@ def test_golden_frame_from_the_stream_has_left_and_right_the_right_way(media_dir
 
 
 def test_det_every_carries_boxes_between_detections(dance_clip: Path, models) -> None:
-    table, _ = poses_to_table(estimate_segment(dance_clip, 24.0, *models, Pose2dOptions(det_every=4)))
-    detected = table.column("detected").to_numpy()
-    frame = table.column("frame").to_numpy()
+    poses, _ = collect_poses(estimate_segment(dance_clip, 24.0, *models, Pose2dOptions(det_every=4)))
+    detected, frame = poses.detected, poses.frame
     assert detected[frame % 4 == 0].all() and not detected[frame % 4 != 0].any()
     assert len(np.unique(frame)) >= 0.95 * 288
 
@@ -93,10 +87,8 @@ def test_two_dancers_side_by_side_give_exactly_two_long_tracks_that_never_swap(
     set_params(project, "trim", unannotated="whole")
     set_params(project, "pose2d", workers=2)
     run_stages(project, "download", "trim", "pose2d", "track")
-    tracks = pq.read_table(project / "data/tracks/duo_000.parquet")
-    frame, boxes, _ = _arrays(tracks)
-    ids = tracks.column("track_id").to_numpy()
-    n_frames = read_meta(project / "data/tracks/duo_000.parquet")["frames"]
+    tracks = read_tracks(project / "data/tracks/duo_000.parquet")
+    boxes, ids, n_frames = tracks.box, tracks.track_id, tracks.frames_total
     long_tracks = [t for t in np.unique(ids[ids >= 0]) if (ids == t).sum() >= 0.8 * n_frames]
     assert len(long_tracks) == 2
     middle = round(1080 * 496 / 1920 / 2) * 2  # the seam: the left clip is scaled to 280 x 496
@@ -113,8 +105,8 @@ def test_segment_without_people_is_an_empty_result_not_a_failure(project: Path, 
     write_sources(project, [("pattern", make_test_video(tmp_path / "pattern.mp4", seconds=2))])
     set_params(project, "trim", unannotated="whole")
     run_stages(project, "download", "trim", "pose2d", "track")
-    assert pq.read_table(project / "data/pose2d/pattern_000.parquet").num_rows == 0
-    assert pq.read_table(project / "data/pose2d/_failures.parquet").num_rows == 0
+    assert len(read_pose2d(project / "data/pose2d/pattern_000.parquet").poses) == 0
+    assert read_failures(project / "data/pose2d") == []
     assert probe(project / "data/qc/pattern_000.mp4").frames == 50
 
 
@@ -130,8 +122,8 @@ def test_corrupt_packets_in_the_middle_are_skipped(project: Path, media_dir: Pat
     data[middle:middle + 3000] = bytes(np.random.default_rng(0).integers(0, 256, 3000, dtype=np.uint8))
     segment.write_bytes(bytes(data))
     run_stages(project, "pose2d")
-    table = pq.read_table(project / "data/pose2d/solo_000.parquet")
-    assert len(set(table.column("frame").to_pylist())) >= 0.8 * 120
+    poses = read_pose2d(project / "data/pose2d/solo_000.parquet").poses
+    assert len(set(poses.frame)) >= 0.8 * 120
 
 
 def test_missing_model_stops_the_stage_with_one_line(project: Path, tmp_path: Path, models_dir: Path,

@@ -6,9 +6,9 @@ import wave
 from pathlib import Path
 
 import numpy as np
-import pyarrow.parquet as pq
 import pytest
 
+from pipeline.ingest.catalog import read_index
 from pipeline.ingest.media import iter_frames, probe
 from pipeline.ingest.segments import SegmentSpec
 from pipeline.ingest.trim import TrimOptions, cut_segment, output_size
@@ -80,7 +80,7 @@ def test_trim_stage_cuts_indexes_and_skips_up_to_date_segments(project: Path, me
     download.run(project)
     trim.run(project)
     seg_dir = project / "data/segments"
-    index = pq.read_table(seg_dir / "index.parquet").to_pylist()
+    index = list(read_index(seg_dir).values())
     assert [(r["segment_id"], r["frames"], r["has_audio"]) for r in index] == [
         ("dance_000", 48, True), ("dance_001", 36, True), ("solo_000", 60, False)]
     assert (seg_dir / "dance_001.wav").exists() and not (seg_dir / "solo_000.wav").exists()

@@ -10,41 +10,23 @@ from 0 in time order.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pyarrow as pa
 
+from pipeline.annotate.clipfile import Clip
 from pipeline.annotate.manifests import Span
 from pipeline.pose.trackfile import SegmentTracks
 
-SCHEMA_VERSION = 1
-CLEAN_SCHEMA = pa.schema(
-    [
-        ("clip_id", pa.string()),
-        ("track_id", pa.int32()),
-        ("frame", pa.int32()),
-        ("time", pa.float64()),
-        ("box", pa.list_(pa.float32(), 4)),
-        ("keypoints", pa.list_(pa.float32(), 51)),
-        ("interpolated", pa.bool_()),
-    ]
-)
+if TYPE_CHECKING:
+    from pipeline.annotate.proposals import ProposalOptions
 
 
 @dataclass(frozen=True)
 class CleanOptions:
     max_gap: int = 12              # missing frames filled by interpolation inside a span
     min_clip_seconds: float = 2.0  # shorter clips are dropped
-
-
-@dataclass
-class Clip:
-    clip_id: str
-    track_id: int
-    frame: np.ndarray         # contiguous frame numbers
-    box: np.ndarray           # n x 4
-    keypoints: np.ndarray     # n x 17 x 3
-    interpolated: np.ndarray  # n bool
 
 
 @dataclass
@@ -89,18 +71,37 @@ def apply_manifest(tracks: SegmentTracks, spans: list[Span], opts: CleanOptions)
     return CleanResult(clips, dropped, interpolated)
 
 
-def clips_table(clips: list[Clip], fps: float) -> pa.Table:
-    n = sum(len(c.frame) for c in clips)
-    if not n:
-        return CLEAN_SCHEMA.empty_table()
-    frame = np.concatenate([c.frame for c in clips]).astype(np.int32)
-    return pa.Table.from_arrays([
-        pa.array(np.concatenate([[c.clip_id] * len(c.frame) for c in clips]), pa.string()),
-        pa.array(np.concatenate([np.full(len(c.frame), c.track_id) for c in clips]), pa.int32()),
-        pa.array(frame, pa.int32()),
-        pa.array(frame / fps, pa.float64()),
-        pa.FixedSizeListArray.from_arrays(pa.array(np.concatenate([c.box for c in clips]).ravel(), pa.float32()), 4),
-        pa.FixedSizeListArray.from_arrays(
-            pa.array(np.concatenate([c.keypoints for c in clips]).ravel(), pa.float32()), 51),
-        pa.array(np.concatenate([c.interpolated for c in clips]), pa.bool_()),
-    ], schema=CLEAN_SCHEMA)
+# --- the clean stage's worker ------------------------------------------------------------
+
+@dataclass(frozen=True)
+class CleanJob:
+    tracks: Path
+    manifest: Path | None   # None: the proposal is accepted (clean.unannotated: accept)
+    out: Path
+    opts: CleanOptions
+    proposal_opts: "ProposalOptions"
+    params: dict
+    inputs: dict
+    fingerprint: str
+
+
+def clean_segment(job: CleanJob) -> dict:
+    """Apply the segment's manifest (already checked by the stage) or its proposal; write the clips."""
+    from pipeline.annotate.clipfile import write_clean
+    from pipeline.annotate.manifests import parse_manifest
+    from pipeline.annotate.proposals import propose
+    from pipeline.pose.pose2dfile import SegmentInfo
+    from pipeline.pose.trackfile import read_tracks
+
+    tracks = read_tracks(job.tracks)
+    if job.manifest is not None:
+        spans, source = parse_manifest(job.manifest)[0], "manifest"
+    else:
+        spans, source = propose(tracks, job.proposal_opts), "proposal"
+    result = apply_manifest(tracks, spans, job.opts)
+    segment = SegmentInfo(tracks.segment_id, tracks.fps, tracks.frames_total, tracks.width, tracks.height)
+    write_clean(job.out, result.clips, segment, spans_from=source, dropped_short=result.dropped_short,
+                fingerprint=job.fingerprint, params=job.params, inputs=job.inputs)
+    return {"clips": len(result.clips), "clip_frames": sum(len(c.frame) for c in result.clips),
+            "dropped_short": result.dropped_short, "interpolated_frames": result.interpolated_frames,
+            "source": source, "fps": tracks.fps}

@@ -10,7 +10,7 @@ from pipeline.annotate.manifests import Problem, check_manifest_file, write_mani
 from pipeline.annotate.proposals import ProposalOptions, propose
 from pipeline.core.paths import TRACK_MANIFESTS, TRACKS
 from pipeline.core.storage import item_files
-from pipeline.pose.trackfile import load_tracks
+from pipeline.pose.trackfile import read_tracks
 
 log = logging.getLogger(__name__)
 
@@ -36,7 +36,7 @@ def seed_manifests(root: Path, opts: ProposalOptions) -> tuple[list[Path], list[
         if path.exists():
             kept.append(path)
             continue
-        tracks = load_tracks(root / TRACKS / f"{seg_id}.parquet")
+        tracks = read_tracks(root / TRACKS / f"{seg_id}.parquet")
         write_manifest(path, propose(tracks, opts), tracks.fingerprint)
         written.append(path)
     return written, kept

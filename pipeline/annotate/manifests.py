@@ -165,7 +165,7 @@ def recorded_tracks_fingerprint(path: Path) -> str:
 
 def check_manifest_file(path: Path, tracks_dir: Path, min_clip_seconds: float) -> tuple[list[Span], list[Problem]]:
     """Parse and check one manifest against ``tracks_dir/<segment_id>.parquet``."""
-    from pipeline.pose.trackfile import load_tracks
+    from pipeline.pose.trackfile import read_tracks
 
     path = Path(path)
     tracks_file = Path(tracks_dir) / f"{path.stem}.parquet"
@@ -175,7 +175,7 @@ def check_manifest_file(path: Path, tracks_dir: Path, min_clip_seconds: float) -
     spans, problems = parse_manifest(path)
     if any(p.line is not None and "column" in p.message for p in problems):
         return spans, problems
-    tracks = load_tracks(tracks_file)
+    tracks = read_tracks(tracks_file)
     recorded = recorded_tracks_fingerprint(path)
     if recorded and recorded != tracks.fingerprint:
         problems.append(Problem(str(path), None, "the tracks were redone since this manifest was seeded: "

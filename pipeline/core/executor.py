@@ -2,12 +2,14 @@
 
 Each item's outcome comes back as an ``Outcome`` (value or error), so one bad item
 never stops the others. Per-worker state (e.g. ONNX sessions) is built once per worker
-by ``initializer``, not once per item.
+by ``initializer``, not once per item; ``with_state`` hands the object a ``setup``
+function built to the worker function with every item.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
+import functools
 import logging
 import multiprocessing as mp
 import os
@@ -33,6 +35,23 @@ class Outcome:
     @property
     def ok(self) -> bool:
         return not self.error_class
+
+
+_WORKER: dict[str, Any] = {}  # this worker process's state, built once by ``setup``
+
+
+def _build_state(setup: Callable[..., Any], args: tuple) -> None:
+    _WORKER["state"] = setup(*args)
+
+
+def _call_with_state(fn: Callable[[Any, Any], Any], item: Any) -> Any:
+    return fn(_WORKER["state"], item)
+
+
+def with_state(fn: Callable[[Any, Any], Any], setup: Callable[..., Any], args: tuple = ()) -> tuple:
+    """(function, initializer, initargs) for ``run_items`` such that each worker builds
+    ``setup(*args)`` once and every item is processed as ``fn(state, item)``."""
+    return functools.partial(_call_with_state, fn), _build_state, (setup, tuple(args))
 
 
 def _label(item: Any) -> str:

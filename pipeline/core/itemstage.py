@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
-from pipeline.core.executor import run_items
+from pipeline.core.executor import run_items, with_state
 from pipeline.core.failures import Failure, check_failure_ratio, now, read_failures, write_failures
 from pipeline.core.storage import read_meta, remove_stale_temps
 
@@ -36,7 +36,8 @@ class WorkItem:
     item_id: str
     fingerprint: str          # of the inputs and params that make this item's output
     outputs: tuple[Path, ...]  # the first is a Parquet file carrying the fingerprint in its metadata
-    payload: Any              # what the worker function needs
+    payload: Any              # what the worker function needs (a frozen dataclass: the job)
+    where: str = ""           # where a user finds the item (file:line), prefixed to its failure message
 
 
 @dataclass
@@ -63,23 +64,31 @@ def run_item_stage(
     out_dirs: Iterable[Path],
     params: dict,
     kind: str = "process",
-    initializer: Callable[..., None] | None = None,
-    initargs: tuple = (),
+    setup: Callable[..., Any] | None = None,
+    setup_args: tuple = (),
     unit: str = "segment",
     gpu: bool = False,
+    up_to_date: Callable[[WorkItem], bool] = is_up_to_date,
+    keep_files: frozenset[str] = frozenset(),
+    finish: Callable[[StageReport], None] | None = None,
 ) -> StageReport:
+    """Run ``fn(payload)`` for every item that is not up to date; with ``setup``, each worker
+    builds ``setup(*setup_args)`` once (e.g. an ONNX session) and runs ``fn(state, payload)``.
+    ``up_to_date`` decides what is skipped (default: the first output's fingerprint);
+    ``keep_files`` names stage files in ``out_dirs`` that are not item outputs (e.g. an index);
+    ``finish(report)`` runs before the failure ratio is checked, so what was done is kept."""
     out_dirs = list(out_dirs)
     only = _ONLY.get()
     for folder in out_dirs:
         folder.mkdir(parents=True, exist_ok=True)
         remove_stale_temps(folder)
     if only is None:
-        _remove_stale_outputs(out_dirs, {i.item_id for i in items})
+        _remove_stale_outputs(out_dirs, {i.item_id for i in items}, keep_files)
     report = StageReport()
     todo = []
     kept_failures = [] if only is None else [f for f in read_failures(out_dirs[0]) if f.item not in only]
     for item in items:
-        if (only is not None and item.item_id not in only) or is_up_to_date(item):
+        if (only is not None and item.item_id not in only) or up_to_date(item):
             report.skipped.append(item.item_id)
         else:
             todo.append(item)
@@ -87,14 +96,17 @@ def run_item_stage(
     executor = str(params.get("executor", "local"))
     if executor not in ("local", "ray"):
         raise ValueError(f"{stage}: executor must be local or ray, not {executor!r}")
-    for outcome in run_items(functools.partial(_apply, fn), todo, workers=int(params.get("workers", 1)),
+    work, initializer, initargs = functools.partial(_apply, fn), None, ()
+    if setup is not None:
+        work, initializer, initargs = with_state(functools.partial(_apply_with_state, fn), setup, setup_args)
+    for outcome in run_items(work, todo, workers=int(params.get("workers", 1)),
                              kind="ray" if executor == "ray" else kind, initializer=initializer, initargs=initargs,
                              desc=stage, unit=unit, ray_options=params.get("ray") or {}, gpu=gpu):
         item: WorkItem = outcome.item
         if outcome.ok:
             report.done[item.item_id] = outcome.value
             continue
-        message = outcome.error_message
+        message = f"{item.where}: {outcome.error_message}" if item.where else outcome.error_message
         if outcome.error_class == "WorkerCrashed":
             message += f"; after fixing the cause, re-run only the failed items with `dance3d retry {stage}`"
         report.failures.append(Failure(item.item_id, stage, outcome.error_class, message, now()))
@@ -105,6 +117,8 @@ def run_item_stage(
                     len(report.failures), len(todo), f" (worker crashed: {', '.join(crashed)})" if crashed else "",
                     out_dirs[0], stage)
     failures = kept_failures + report.failures
+    if finish is not None:
+        finish(report)
     write_failures(out_dirs[0], stage, failures, total=len(items))
     check_failure_ratio(stage, len(failures), len(items), float(params.get("max_failure_ratio", 0.2)))
     return report
@@ -114,10 +128,15 @@ def _apply(fn: Callable[[Any], Any], item: WorkItem) -> Any:
     return fn(item.payload)
 
 
-def _remove_stale_outputs(out_dirs: list[Path], keep: set[str]) -> None:
+def _apply_with_state(fn: Callable[[Any, Any], Any], state: Any, item: WorkItem) -> Any:
+    return fn(state, item.payload)
+
+
+def _remove_stale_outputs(out_dirs: list[Path], keep: set[str], keep_files: frozenset[str]) -> None:
     """Outputs of items that are gone upstream must not feed later stages."""
     for folder in out_dirs:
         for path in sorted(folder.iterdir()):
-            if path.is_file() and not path.name.startswith(("_", ".")) and path.stem not in keep:
+            if (path.is_file() and not path.name.startswith(("_", ".")) and path.stem not in keep
+                    and path.name not in keep_files):
                 log.info("removing %s: its item no longer exists upstream", path)
                 path.unlink()

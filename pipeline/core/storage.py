@@ -10,6 +10,7 @@ import tempfile
 from pathlib import Path
 from typing import Any, Iterator, Mapping
 
+import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
@@ -129,3 +130,19 @@ def read_meta(path: Path) -> dict[str, Any]:
     schema = pq.read_schema(path)
     raw = (schema.metadata or {}).get(META_KEY)
     return json.loads(raw) if raw else {}
+
+
+def fixed_list(values: np.ndarray, inner: pa.DataType = pa.float32()) -> pa.Array:
+    """A (rows x d) numpy array as an Arrow fixed-size list column (the contracts' tensor form)."""
+    values = np.asarray(values)
+    width = int(np.prod(values.shape[1:])) if values.ndim > 1 else 1
+    flat = values.reshape(len(values), width).ravel()
+    return pa.FixedSizeListArray.from_arrays(pa.array(flat.astype(inner.to_pandas_dtype()), inner), width)
+
+
+def column_array(table: pa.Table, name: str, shape: tuple[int, ...] = (), dtype: Any = np.float32) -> np.ndarray:
+    """A column as numpy: fixed-size lists become (rows, *shape)."""
+    column = table.column(name).combine_chunks()
+    if pa.types.is_fixed_size_list(column.type):
+        return np.asarray(column.flatten(), dtype).reshape(table.num_rows, *shape)
+    return column.to_numpy(zero_copy_only=False)

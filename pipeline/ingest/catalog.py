@@ -1,13 +1,40 @@
-"""Readers for the pipeline's catalogue files: the download ledger and the segment index."""
+"""The catalogue files' contract: the download ledger and the segment index (schemas, readers, writers)."""
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any, Mapping
 
+import pyarrow as pa
 import pyarrow.parquet as pq
+
+from pipeline.core.storage import write_parquet
 
 LEDGER = "ledger.parquet"
 INDEX = "index.parquet"
+LEDGER_VERSION = 1
+INDEX_VERSION = 1
+
+LEDGER_SCHEMA = pa.schema(
+    [
+        ("url", pa.string()), ("video_id", pa.string()), ("status", pa.string()),
+        ("error_class", pa.string()), ("error_message", pa.string()),
+        ("path", pa.string()), ("info_path", pa.string()), ("size", pa.int64()), ("sha256", pa.string()),
+        ("fps", pa.float64()), ("duration", pa.float64()), ("width", pa.int32()), ("height", pa.int32()),
+        ("has_audio", pa.bool_()), ("title", pa.string()), ("channel", pa.string()), ("uploader", pa.string()),
+        ("upload_date", pa.string()), ("licence", pa.string()), ("style", pa.string()),
+        ("tags", pa.list_(pa.string())), ("attempts", pa.int32()),
+    ]
+)
+
+INDEX_SCHEMA = pa.schema(
+    [
+        ("segment_id", pa.string()), ("video_id", pa.string()), ("start", pa.float64()), ("end", pa.float64()),
+        ("fps", pa.float64()), ("fps_fraction", pa.string()), ("frames", pa.int32()),
+        ("width", pa.int32()), ("height", pa.int32()), ("has_audio", pa.bool_()), ("label", pa.string()),
+        ("path", pa.string()), ("wav_path", pa.string()), ("fingerprint", pa.string()),
+    ]
+)
 
 
 def read_ledger(raw_dir: Path) -> dict[str, dict]:
@@ -16,7 +43,19 @@ def read_ledger(raw_dir: Path) -> dict[str, dict]:
     return {row["url"]: row for row in pq.read_table(path).to_pylist()} if path.exists() else {}
 
 
+def write_ledger(raw_dir: Path, rows: list[dict], params: Mapping[str, Any]) -> None:
+    """One row per source, in sources.csv order."""
+    write_parquet(pa.Table.from_pylist(rows, schema=LEDGER_SCHEMA), Path(raw_dir) / LEDGER,
+                  schema_version=LEDGER_VERSION, params=params)
+
+
 def read_index(seg_dir: Path) -> dict[str, dict]:
     """The segment index by segment id, in index order ({} when there is none)."""
     path = Path(seg_dir) / INDEX
     return {r["segment_id"]: r for r in pq.read_table(path).to_pylist()} if path.exists() else {}
+
+
+def write_index(seg_dir: Path, rows: list[dict], params: Mapping[str, Any]) -> None:
+    """One row per segment, in plan order; ``fingerprint`` is each segment's up-to-date key."""
+    write_parquet(pa.Table.from_pylist(rows, schema=INDEX_SCHEMA), Path(seg_dir) / INDEX,
+                  schema_version=INDEX_VERSION, params=params)

@@ -84,3 +84,21 @@ def cut_segment(src: Path, video: VideoInfo, spec: SegmentSpec, mp4: Path, wav: 
         "path": mp4.name,
         "wav_path": wav.name if with_audio else "",
     }
+
+
+# --- the trim stage's worker -------------------------------------------------------------
+
+@dataclass(frozen=True)
+class CutJob:
+    source: Path
+    spec: SegmentSpec
+    out_dir: Path
+    opts: TrimOptions
+    fingerprint: str
+
+
+def cut_job(job: CutJob) -> dict:
+    """Cut one segment; returns its row of the segment index."""
+    row = cut_segment(job.source, probe(job.source), job.spec, job.out_dir / f"{job.spec.segment_id}.mp4",
+                      job.out_dir / f"{job.spec.segment_id}.wav", job.opts)
+    return {**row, "fingerprint": job.fingerprint}

@@ -9,11 +9,16 @@ filled_joints (how many 2D joints were filled because their confidence was low).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from pipeline.core.storage import column_array, fixed_list, read_meta, write_parquet
+
+SCHEMA_VERSION = 1
 MOTION_SCHEMA = pa.schema(
     [
         ("clip_id", pa.string()),
@@ -50,23 +55,51 @@ def clips_to_table(clips: list[MotionClip]) -> pa.Table:
         pa.array(np.concatenate([np.full(len(c.frame), c.track_id) for c in clips]), pa.int32()),
         pa.array(cat("frame"), pa.int32()),
         pa.array(cat("time"), pa.float64()),
-        pa.FixedSizeListArray.from_arrays(pa.array(cat("joints").astype(np.float32).ravel(), pa.float32()), 51),
+        fixed_list(cat("joints").reshape(-1, 51)),
         pa.array(cat("interpolated"), pa.bool_()),
         pa.array(cat("filled_joints"), pa.int8()),
     ], schema=MOTION_SCHEMA)
 
 
-def read_clips(path) -> list[MotionClip]:
+@dataclass(frozen=True)
+class MotionFile:
+    clips: list[MotionClip]
+    meta: dict  # segment_id, fps (of the frame grid), width, height, and the producing stage's provenance
+
+    @property
+    def fps(self) -> float:
+        return float(self.meta["fps"])
+
+
+def write_motion(path: Path, clips: list[MotionClip], segment_meta: Mapping[str, Any], *, fingerprint: str,
+                 params: Mapping[str, Any], inputs: Mapping[str, str]) -> None:
+    """``segment_meta``: segment_id, fps, width, height (and any extra facts about the file)."""
+    write_parquet(clips_to_table(clips), path, schema_version=SCHEMA_VERSION, params=params, inputs=inputs,
+                  extra={"fingerprint": fingerprint, **segment_meta})
+
+
+def read_motion(path: Path) -> MotionFile:
+    return MotionFile(read_clips(path), read_meta(path))
+
+
+def clip_frame_counts(path: Path) -> dict[str, int]:
+    """Frames per clip of a clean or motion table, read from its clip_id column alone."""
+    from collections import Counter
+
+    return dict(Counter(pq.read_table(path, columns=["clip_id"]).column("clip_id").to_pylist()))
+
+
+def read_clips(path: Path) -> list[MotionClip]:
     table = pq.read_table(path)
     if not table.num_rows:
         return []
     ids = np.array(table.column("clip_id").to_pylist())
-    frame = table.column("frame").to_numpy()
-    time = table.column("time").to_numpy()
-    joints = np.asarray(table.column("joints").combine_chunks().flatten(), np.float32).reshape(-1, 17, 3)
-    track = table.column("track_id").to_numpy()
-    interp = table.column("interpolated").to_numpy(zero_copy_only=False)
-    filled = table.column("filled_joints").to_numpy()
+    frame = column_array(table, "frame")
+    time = column_array(table, "time")
+    joints = column_array(table, "joints", (17, 3))
+    track = column_array(table, "track_id")
+    interp = column_array(table, "interpolated")
+    filled = column_array(table, "filled_joints")
     clips = []
     for clip_id in dict.fromkeys(ids):  # file order
         rows = np.flatnonzero(ids == clip_id)

@@ -9,6 +9,8 @@ exactly, so smooth motion is not distorted.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -33,3 +35,32 @@ def resample_cubic(times: np.ndarray, values: np.ndarray, fps: int = TARGET_FPS)
         return frames, out.reshape((len(frames),) + values.shape[1:])
     spline = CubicSpline(times, values, axis=0, bc_type="not-a-knot")
     return frames, spline(new_times)
+
+
+# --- the resample stage's worker ---------------------------------------------------------
+
+@dataclass(frozen=True)
+class ResampleJob:
+    smooth: Path
+    out: Path
+    params: dict
+    inputs: dict
+    fingerprint: str
+
+
+def resample_segment(job: ResampleJob) -> dict:
+    from pipeline.motion.motionfile import MotionClip, read_motion, write_motion
+
+    motion = read_motion(job.smooth)
+    clips = []
+    for clip in motion.clips:
+        frames, joints = resample_cubic(clip.time, clip.joints)
+        if not len(frames):
+            continue
+        near = np.clip(np.searchsorted(clip.time, frames / TARGET_FPS), 0, len(clip.time) - 1)
+        clips.append(MotionClip(clip.clip_id, clip.track_id, frames, frames / TARGET_FPS, joints.astype(np.float32),
+                                clip.interpolated[near], clip.filled_joints[near]))
+    segment = {"fps": TARGET_FPS, "source_fps": motion.meta.get("fps"),
+               **{k: motion.meta.get(k) for k in ("segment_id", "width", "height")}}
+    write_motion(job.out, clips, segment, fingerprint=job.fingerprint, params=job.params, inputs=job.inputs)
+    return {"clips": len(clips)}

@@ -10,7 +10,9 @@ every joint coordinate of a clip together, instead of one sparse solve per serie
 
 from __future__ import annotations
 
+from dataclasses import dataclass, replace
 from functools import lru_cache
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -76,3 +78,37 @@ def hp_trend(series: np.ndarray, lamb: float = 1.0) -> np.ndarray:
         return np.linalg.solve(np.eye(3) + lamb * d.T @ d, y.reshape(3, -1)).reshape(y.shape)
     flat = np.ascontiguousarray(y.reshape(n, -1))
     return _substitute(_factor(n, float(lamb)), flat).reshape(y.shape)
+
+
+# --- the smooth stage's worker -----------------------------------------------------------
+
+@dataclass(frozen=True)
+class SmoothJob:
+    pose3d: Path
+    out: Path
+    lamb: float
+    params: dict
+    inputs: dict
+    fingerprint: str
+
+
+def smooth_segment(job: SmoothJob) -> dict:
+    """HP-filter every clip of a segment; per-clip QC (acceleration, limb-length CV) goes in the metadata."""
+    from pipeline.motion.motionfile import read_motion, write_motion
+    from pipeline.motion.quality import limb_length_cv, mean_acceleration
+
+    motion = read_motion(job.pose3d)
+    clips, qc = [], {}
+    for clip in motion.clips:
+        trend = hp_trend(clip.joints.reshape(len(clip.joints), -1), job.lamb).reshape(clip.joints.shape)
+        clips.append(replace(clip, joints=trend.astype(np.float32)))
+        qc[clip.clip_id] = {
+            "frames": int(len(clip.frame)),
+            "mean_acc_before": round(mean_acceleration(clip.joints, motion.fps), 3),
+            "mean_acc_after": round(mean_acceleration(trend, motion.fps), 3),
+            "limb_cv": round(limb_length_cv(trend), 4),
+            "interpolated_share": round(float(clip.interpolated.mean()), 4),
+        }
+    segment = {"clip_qc": qc, **{k: motion.meta.get(k) for k in ("segment_id", "fps", "width", "height")}}
+    write_motion(job.out, clips, segment, fingerprint=job.fingerprint, params=job.params, inputs=job.inputs)
+    return qc

@@ -146,3 +146,30 @@ def compute_features(y: np.ndarray, extra_sets: tuple[str, ...] = ()) -> AudioFe
         tempo=float(np.atleast_1d(tempo)[0]),
         extra={k: v.astype(np.float32) for k, v in extra.items()},
     )
+
+
+# --- the audio stage's worker ------------------------------------------------------------
+
+@dataclass(frozen=True)
+class AudioJob:
+    wav: Path            # the segment's lossless audio
+    out_wav: Path        # 44.1 kHz, EBU R128
+    out_features: Path
+    loudness: LoudnessOptions
+    extra_sets: tuple[str, ...]
+    params: dict
+    inputs: dict
+    fingerprint: str
+
+
+def audio_segment(job: AudioJob) -> dict:
+    from pipeline.music.featurefile import features_table, write_features
+
+    loudness = normalise_loudness(job.wav, job.out_wav, job.loudness)
+    f = compute_features(load_for_features(job.out_wav), tuple(job.extra_sets))
+    meta = {"segment_id": job.out_features.stem, "fps": FPS, "tempo": f.tempo, "loudness": loudness.as_dict(),
+            "beat_times": [round(t, 6) for t in f.beat_times],
+            "alignment": "frame k is centred at k/24 s: audio resampled to 12288 Hz, hop 512, centred frames"}
+    table = features_table(f.frames, FPS, f.mfcc, f.chroma, f.onset, f.beat, f.extra)
+    write_features(job.out_features, table, meta, fingerprint=job.fingerprint, params=job.params, inputs=job.inputs)
+    return {"frames": f.frames, "tempo": f.tempo, "loudness": loudness.as_dict()}

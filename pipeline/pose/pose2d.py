@@ -16,24 +16,12 @@ from pathlib import Path
 from typing import Any, Callable, Iterator
 
 import numpy as np
-import pyarrow as pa
 
 from pipeline.ingest.media import iter_frames
-from pipeline.pose.models.detector import Detections, Letterbox, largest
-
-SCHEMA_VERSION = 1
-KEYPOINTS = 17
-POSE2D_SCHEMA = pa.schema(
-    [
-        ("frame", pa.int32()),            # frame number on the segment clock (round(time * fps))
-        ("time", pa.float64()),           # seconds from the segment start
-        ("person", pa.int8()),            # rank by box area within the frame, 0 = largest
-        ("box", pa.list_(pa.float32(), 4)),          # x1, y1, x2, y2 in segment pixels
-        ("box_score", pa.float32()),
-        ("keypoints", pa.list_(pa.float32(), KEYPOINTS * 3)),  # COCO-17 (x, y, score) flattened
-        ("detected", pa.bool_()),         # False: box carried over from the previous keypoints
-    ]
-)
+from pipeline.pose.models.detector import Detections, Letterbox, RTMDetDetector, largest
+from pipeline.pose.models.pose import MoveNetPose, RTMPose
+from pipeline.pose.models.session import create_session
+from pipeline.pose.pose2dfile import Poses, SegmentInfo, write_pose2d
 
 
 @dataclass(frozen=True)
@@ -150,29 +138,75 @@ def _carry(previous: FramePoses | None, image: np.ndarray, opts: Pose2dOptions) 
     return Detections(boxes[keep], previous.scores[keep])
 
 
-def poses_to_table(frames: Iterator[FramePoses], progress: Callable[[], None] | None = None) -> tuple[pa.Table, int]:
-    """Collect per-person rows into the pose2d table; returns it and the number of frames seen."""
-    cols: dict[str, list] = {name: [] for name in POSE2D_SCHEMA.names}
+def collect_poses(frames: Iterator[FramePoses], progress: Callable[[], None] | None = None) -> tuple[Poses, int]:
+    """Collect per-person rows of every frame; returns them and the number of frames seen."""
+    rows: dict[str, list] = {k: [] for k in ("frame", "time", "person", "box", "box_score", "keypoints", "detected")}
     seen = 0
     for fp in frames:
         seen += 1
-        for i in range(len(fp.scores)):
-            cols["frame"].append(fp.frame)
-            cols["time"].append(fp.time)
-            cols["person"].append(i)
-            cols["box"].append(fp.boxes[i].astype(np.float32))
-            cols["box_score"].append(float(fp.scores[i]))
-            cols["keypoints"].append(fp.keypoints[i].reshape(-1).astype(np.float32))
-            cols["detected"].append(fp.detected)
+        n = len(fp.scores)
+        rows["frame"].append(np.full(n, fp.frame))
+        rows["time"].append(np.full(n, fp.time))
+        rows["person"].append(np.arange(n))
+        rows["box"].append(np.asarray(fp.boxes, np.float32).reshape(n, 4))
+        rows["box_score"].append(np.asarray(fp.scores, np.float32))
+        rows["keypoints"].append(np.asarray(fp.keypoints, np.float32).reshape(n, 17, 3))
+        rows["detected"].append(np.full(n, fp.detected))
         if progress:
             progress()
-    arrays = []
-    for field in POSE2D_SCHEMA:
-        values = cols[field.name]
-        if pa.types.is_fixed_size_list(field.type):
-            size = field.type.list_size
-            flat = np.concatenate(values).astype(np.float32) if values else np.zeros(0, np.float32)
-            arrays.append(pa.FixedSizeListArray.from_arrays(pa.array(flat, pa.float32()), size))
-        else:
-            arrays.append(pa.array(values, field.type))
-    return pa.Table.from_arrays(arrays, schema=POSE2D_SCHEMA), seen
+    empty = {"box": (0, 4), "keypoints": (0, 17, 3)}
+    cat = {k: np.concatenate(v) if v else np.zeros(empty.get(k, (0,))) for k, v in rows.items()}
+    return Poses(**cat), seen
+
+
+# --- the pose2d stage's worker -----------------------------------------------------------
+
+@dataclass(frozen=True)
+class ModelFiles:
+    """What a worker needs to build its sessions (resolved once, in the stage's process)."""
+
+    detector: str
+    detector_input: tuple[int, int]
+    pose: str
+    pose_kind: str  # movenet | rtmpose
+    pose_input: tuple[int, int]
+    threads: int = 1
+    det_score: float = 0.5
+    crop_padding: float = 1.25
+
+
+@dataclass(frozen=True)
+class PoseModels:
+    detector: RTMDetDetector
+    pose: MoveNetPose | RTMPose
+
+
+def load_pose_models(files: ModelFiles) -> PoseModels:
+    """One worker's sessions, built once and reused for every segment it gets."""
+    detector = RTMDetDetector(create_session(Path(files.detector), files.threads), files.detector_input,
+                              files.det_score)
+    session = create_session(Path(files.pose), files.threads)
+    if files.pose_kind == "movenet":
+        return PoseModels(detector, MoveNetPose(session, files.pose_input, files.crop_padding))
+    if files.pose_kind == "rtmpose":
+        return PoseModels(detector, RTMPose(session, files.pose_input, files.crop_padding))
+    raise ValueError(f"pose model kind {files.pose_kind!r} is not a 2D pose model")
+
+
+@dataclass(frozen=True)
+class Pose2dJob:
+    video: Path
+    out: Path
+    segment: SegmentInfo
+    opts: Pose2dOptions
+    params: dict
+    inputs: dict
+    fingerprint: str
+
+
+def pose_segment(models: PoseModels, job: Pose2dJob) -> dict:
+    poses, frames = collect_poses(estimate_segment(job.video, job.segment.fps, models.detector, models.pose,
+                                                   job.opts))
+    segment = SegmentInfo(job.segment.segment_id, job.segment.fps, frames, job.segment.width, job.segment.height)
+    write_pose2d(job.out, poses, segment, fingerprint=job.fingerprint, params=job.params, inputs=job.inputs)
+    return {"frames": frames, "detections": len(poses), "frames_with_people": len(np.unique(poses.frame))}

@@ -1,14 +1,24 @@
-"""Reading a ``data/tracks/<segment_id>.parquet`` file into arrays."""
+"""The tracks table (``data/tracks/<segment_id>.parquet``): the pose2d rows plus ``track_id``.
+
+``track_id`` is -1 for detections that never formed a real track. Metadata as pose2d's,
+with the pose2d file's fingerprint as input.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Mapping
 
 import numpy as np
+import pyarrow as pa
 import pyarrow.parquet as pq
 
-from pipeline.core.storage import read_meta
+from pipeline.core.storage import column_array, read_meta, write_parquet
+from pipeline.pose.pose2dfile import KEYPOINTS, POSE2D_SCHEMA, Poses, SegmentInfo
+
+SCHEMA_VERSION = 1
+TRACKS_SCHEMA = POSE2D_SCHEMA.append(pa.field("track_id", pa.int32()))
 
 
 @dataclass(frozen=True)
@@ -34,19 +44,24 @@ class SegmentTracks:
         return sorted(int(t) for t in np.unique(self.track_id) if t >= 0)
 
 
-def load_tracks(path: Path) -> SegmentTracks:
+def write_tracks(path: Path, poses: Poses, track_id: np.ndarray, segment: SegmentInfo, *, fingerprint: str,
+                 params: Mapping[str, Any], inputs: Mapping[str, str]) -> None:
+    table = poses.table().append_column(TRACKS_SCHEMA.field("track_id"), pa.array(track_id, pa.int32()))
+    write_parquet(table, path, schema_version=SCHEMA_VERSION, params=params, inputs=inputs,
+                  extra={"fingerprint": fingerprint, **segment.as_meta()})
+
+
+def read_tracks(path: Path) -> SegmentTracks:
     table = pq.read_table(path)
     meta = read_meta(path)
+    segment = SegmentInfo.from_meta(meta, path)
     return SegmentTracks(
-        segment_id=meta.get("segment_id") or Path(path).stem,
-        fps=float(meta["fps"]),
-        frames_total=int(meta["frames"]),
-        width=int(meta["width"]),
-        height=int(meta["height"]),
-        frame=table.column("frame").to_numpy().astype(np.int64),
-        time=table.column("time").to_numpy(),
-        track_id=table.column("track_id").to_numpy().astype(np.int64),
-        box=np.asarray(table.column("box").combine_chunks().flatten(), np.float32).reshape(-1, 4),
-        keypoints=np.asarray(table.column("keypoints").combine_chunks().flatten(), np.float32).reshape(-1, 17, 3),
+        segment_id=segment.segment_id, fps=segment.fps, frames_total=segment.frames, width=segment.width,
+        height=segment.height,
+        frame=column_array(table, "frame").astype(np.int64),
+        time=column_array(table, "time"),
+        track_id=column_array(table, "track_id").astype(np.int64),
+        box=column_array(table, "box", (4,)),
+        keypoints=column_array(table, "keypoints", (KEYPOINTS, 3)),
         fingerprint=str(meta.get("fingerprint", "")),
     )

@@ -13,6 +13,7 @@ their id back. Detections of tracks that never became real get track id -1.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -143,3 +144,34 @@ def assign_tracks(frames: np.ndarray, boxes: np.ndarray, keypoints: np.ndarray,
                     ids[track.detections] = track.track_id
                 live.append(track)
     return ids
+
+
+# --- the track stage's worker ------------------------------------------------------------
+
+@dataclass(frozen=True)
+class TrackJob:
+    pose2d: Path
+    out: Path
+    qc_out: Path | None   # None: no QC video
+    video: Path           # the segment, for the QC video
+    has_audio: bool
+    opts: TrackerOptions
+    params: dict
+    fingerprint: str
+
+
+def track_segment(job: TrackJob) -> dict:
+    from pipeline.pose.pose2dfile import read_pose2d
+    from pipeline.pose.qc import render_qc
+    from pipeline.pose.trackfile import write_tracks
+
+    pose2d = read_pose2d(job.pose2d)
+    poses = pose2d.poses
+    ids = assign_tracks(poses.frame, poses.box, poses.keypoints, job.opts)
+    write_tracks(job.out, poses, ids, pose2d.segment, fingerprint=job.fingerprint, params=job.params,
+                 inputs={"pose2d": pose2d.fingerprint})
+    if job.qc_out is not None:
+        render_qc(job.video, pose2d.segment.fps, poses.frame, ids, poses.box, poses.keypoints, job.qc_out,
+                  has_audio=job.has_audio, kp_min_score=job.opts.kp_min_score)
+    real = ids[ids >= 0]
+    return {"tracks": int(len(np.unique(real))), "untracked": int((ids < 0).sum())}

@@ -6,13 +6,15 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
-import pyarrow.parquet as pq
 import pytest
 
+from pipeline.annotate.clipfile import read_clean
 from pipeline.annotate.manifests import Span, write_manifest
 from pipeline.core.errors import InputError, InputErrors, ModelMissingError
 from pipeline.core.params import load_params
+from pipeline.ingest.catalog import read_ledger
 from pipeline.ingest.sources import read_sources
+from pipeline.pose.pose2dfile import read_pose2d
 from tests.conftest import PROJECT, ffmpeg, make_test_video, run_stages, set_params
 from tests.test_annotation import HEADER as MANIFEST_HEADER
 from tests.test_annotation import write_tracks
@@ -61,7 +63,7 @@ def test_unusable_videos_are_failed_ledger_rows(tmp_path: Path, media_dir: Path,
     src = bad_file(tmp_path, media_dir, kind)
     root = project_with(tmp_path / "p", media_dir, str(src))
     run_stages(root, "download", "trim")
-    ledger = {r["video_id"]: r for r in pq.read_table(root / "data/raw/ledger.parquet").to_pylist()}
+    ledger = {r["video_id"]: r for r in read_ledger(root / "data/raw").values()}
     bad = next(r for r in ledger.values() if r["url"].endswith(src.name))
     assert bad["status"] == "failed" and reason in bad["error_message"], bad["error_message"]
     assert ledger["good"]["status"] == "ok"
@@ -71,7 +73,7 @@ def test_unusable_videos_are_failed_ledger_rows(tmp_path: Path, media_dir: Path,
 def test_missing_local_file(tmp_path: Path, media_dir: Path) -> None:
     root = project_with(tmp_path / "p", media_dir, str(tmp_path / "gone.mp4"))
     run_stages(root, "download", "trim")
-    bad = pq.read_table(root / "data/raw/ledger.parquet").to_pylist()[1]
+    bad = list(read_ledger(root / "data/raw").values())[1]
     assert bad["error_class"] == "not_found" and "gone.mp4" in bad["error_message"]
     assert (root / "data/segments/good_000.mp4").exists()
 
@@ -83,7 +85,7 @@ def test_failing_download_http_404(tmp_path: Path, media_dir: Path) -> None:
         run_stages(root, "download", "trim")
     finally:
         server.httpd.shutdown()
-    bad = pq.read_table(root / "data/raw/ledger.parquet").to_pylist()[1]
+    bad = list(read_ledger(root / "data/raw").values())[1]
     assert bad["status"] == "failed" and bad["error_class"] == "not_found" and "404" in bad["error_message"]
     assert (root / "data/segments/good_000.mp4").exists()
 
@@ -118,9 +120,9 @@ def test_segment_with_no_people(tmp_path: Path, media_dir: Path, models_dir: Pat
     monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
     root = project_with(tmp_path / "p", media_dir, str(make_test_video(tmp_path / "empty_room.mp4", seconds=1)))
     run_stages(root, "download", "trim", "pose2d", "track", "clean")
-    assert pq.read_table(root / "data/pose2d/bad_000.parquet").num_rows == 0
-    assert pq.read_table(root / "data/clean/bad_000.parquet").num_rows == 0
-    assert pq.read_table(root / "data/clean/good_000.parquet").num_rows > 0
+    assert len(read_pose2d(root / "data/pose2d/bad_000.parquet").poses) == 0
+    assert not read_clean(root / "data/clean/bad_000.parquet").clips
+    assert read_clean(root / "data/clean/good_000.parquet").clips
 
 
 SOURCES_HEADER = "video_id,url,channel,style,licence,note\n"

@@ -9,11 +9,14 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import asdict
 from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
 
+from pipeline.core.failures import read_failures
+from pipeline.ingest.catalog import read_ledger
 from tests.conftest import PROJECT, run_stages, set_params, write_sources
 
 OUTPUTS = ("data/segments", "data/pose2d", "data/tracks", "data/qc", "data/clean")
@@ -101,7 +104,7 @@ def test_adding_a_video_processes_only_that_video(tmp_path: Path, media_dir: Pat
     stages = ("download", "trim", "pose2d", "track", "clean")
     run_stages(root, *stages)
     before = mtimes(root)
-    ledger_rows = pq.read_table(root / "data/raw/ledger.parquet").num_rows
+    ledger_rows = len(read_ledger(root / "data/raw"))
     (root / "manifests/sources.csv").write_text((root / "manifests/sources.csv").read_text()
                                                 + f"dance,{media_dir / 'videos/dance_single_music_musepose.mp4'}\n")
     (root / "annotations/segments.csv").write_text("video_id,start,end\nsolo,0,2\ntaiji,1,3\ndance,1,3\n")
@@ -112,7 +115,7 @@ def test_adding_a_video_processes_only_that_video(tmp_path: Path, media_dir: Pat
     assert redone == set()  # nothing of the first two videos was touched
     assert {k.split("/")[-1].split(".")[0] for k in added} == {"dance_000"}
     assert sorted(k.split("/")[1] for k in added) == ["clean", "pose2d", "qc", "segments", "segments", "tracks"]
-    assert pq.read_table(root / "data/raw/ledger.parquet").num_rows == ledger_rows + 1
+    assert len(read_ledger(root / "data/raw")) == ledger_rows + 1
 
 
 def test_retry_reruns_only_the_failed_items(tmp_path: Path, media_dir: Path, models_dir: Path, monkeypatch) -> None:
@@ -125,7 +128,7 @@ def test_retry_reruns_only_the_failed_items(tmp_path: Path, media_dir: Path, mod
     bad.write_bytes(b"not a video any more")
     set_params(root, "pose2d", max_failure_ratio=1.0)
     run_stages(root, "pose2d")
-    failures = pq.read_table(root / "data/pose2d/_failures.parquet").to_pylist()
+    failures = [asdict(f) for f in read_failures(root / "data/pose2d")]
     assert [f["item"] for f in failures] == ["solo_001"]
     assert "solo_001.mp4: not a readable media file" in failures[0]["message"]
     kept = (root / "data/pose2d/solo_000.parquet").stat().st_mtime_ns
@@ -136,5 +139,5 @@ def test_retry_reruns_only_the_failed_items(tmp_path: Path, media_dir: Path, mod
     assert "retrying 1 items: solo_001" in out.stdout
     assert (root / "data/pose2d/solo_001.parquet").exists()
     assert (root / "data/pose2d/solo_000.parquet").stat().st_mtime_ns == kept
-    assert pq.read_table(root / "data/pose2d/_failures.parquet").num_rows == 0
+    assert read_failures(root / "data/pose2d") == []
     assert good.exists()

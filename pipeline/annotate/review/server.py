@@ -34,7 +34,7 @@ from pipeline.annotate.proposals import ProposalOptions, propose, track_stats
 from pipeline.core.ids import is_safe_id
 from pipeline.core.paths import QC, TRACK_MANIFESTS, TRACKS
 from pipeline.core.storage import item_files
-from pipeline.pose.trackfile import load_tracks
+from pipeline.pose.trackfile import read_tracks
 
 log = logging.getLogger(__name__)
 STATIC = Path(__file__).parent / "static"
@@ -65,7 +65,7 @@ class ReviewApp:
         return hashlib.sha256(path.read_bytes()).hexdigest()[:16] if path.exists() else ""
 
     def proposal_text(self, seg_id: str) -> str:
-        tracks = load_tracks(self.tracks_path(seg_id))
+        tracks = read_tracks(self.tracks_path(seg_id))
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / f"{seg_id}.csv"
             write_manifest(path, propose(tracks, self.proposals), tracks.fingerprint)
@@ -91,7 +91,7 @@ class ReviewApp:
         return {"id": seg_id, "status": state, "errors": errors}
 
     def segment(self, seg_id: str) -> dict:
-        tracks = load_tracks(self.tracks_path(seg_id))
+        tracks = read_tracks(self.tracks_path(seg_id))
         path = self.manifest_path(seg_id)
         if path.exists():
             spans, _ = parse_manifest(path)
@@ -120,7 +120,7 @@ class ReviewApp:
             path = self.manifest_path(seg_id)
             if path.exists() and _same_rows(parse_manifest(path)[0], spans):
                 return HTTPStatus.OK, {"version": current, "unchanged": True}  # byte-for-byte untouched
-            tracks = load_tracks(self.tracks_path(seg_id))
+            tracks = read_tracks(self.tracks_path(seg_id))
             fingerprint = recorded_tracks_fingerprint(path) if path.exists() else tracks.fingerprint
             with tempfile.TemporaryDirectory() as tmp:
                 candidate = Path(tmp) / f"{seg_id}.csv"

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from pathlib import Path
+
 import numpy as np
 
 from pipeline.motion.lifting.geometry import normalise_screen
@@ -62,3 +65,39 @@ class Lifter:
             outputs = [(a + b) / 2 for a, b in zip(outputs, back)]
         # Training targets have the root at 0, but the network only learns to come close.
         return [(o - o[:, :1]).astype(np.float32) for o in outputs]
+
+
+# --- the lift stage's worker -------------------------------------------------------------
+
+@dataclass(frozen=True)
+class LiftJob:
+    clean: Path
+    out: Path
+    min_score: float   # 2D joints below this are interpolated over time first
+    flip: bool         # average with the mirrored input
+    params: dict
+    inputs: dict
+    fingerprint: str
+
+
+def load_lifter(path: str, threads: int = 1) -> Lifter:
+    """One worker's lifter, built once and reused for every segment it gets."""
+    from pipeline.pose.models.session import create_session
+
+    return Lifter(create_session(Path(path), threads))
+
+
+def lift_segment(lifter: Lifter, job: LiftJob) -> dict:
+    """All clips of a segment in one ONNX call; writes the segment's 3D motion table."""
+    from pipeline.annotate.clipfile import read_clean
+    from pipeline.motion.motionfile import MotionClip, write_motion
+
+    clean = read_clean(job.clean)
+    filled = [fill_low_confidence(c.keypoints, job.min_score) for c in clean.clips]
+    lifted = lifter.lift([f[0] for f in filled], clean.segment.width, clean.segment.height, flip=job.flip)
+    clips = [MotionClip(c.clip_id, c.track_id, c.frame.astype(np.int32), clean.time(c), joints, c.interpolated,
+                        f[1].sum(1).astype(np.int8)) for c, joints, f in zip(clean.clips, lifted, filled)]
+    segment = {"segment_id": clean.segment.segment_id, "fps": clean.segment.fps, "width": clean.segment.width,
+               "height": clean.segment.height}
+    write_motion(job.out, clips, segment, fingerprint=job.fingerprint, params=job.params, inputs=job.inputs)
+    return {"clips": len(clips), "frames": int(sum(len(c.frame) for c in clean.clips))}

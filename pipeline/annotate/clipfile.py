@@ -1,0 +1,97 @@
+"""The clean table (``data/clean/<segment_id>.parquet``): kept spans as clips of one dancer each.
+
+One row per clip frame: clip_id (``<segment_id>_<track_id>_<k>``), track_id, frame
+(contiguous within a clip), time (frame / fps, segment clock), box, keypoints (COCO-17
+x, y, score), interpolated (the frame was a gap filled by interpolation). Metadata: the
+segment, whether spans came from a manifest or a proposal, and how many clips were too
+short to keep.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from pipeline.core.storage import column_array, fixed_list, read_meta, write_parquet
+from pipeline.pose.pose2dfile import KEYPOINTS, SegmentInfo
+
+SCHEMA_VERSION = 1
+CLEAN_SCHEMA = pa.schema(
+    [
+        ("clip_id", pa.string()),
+        ("track_id", pa.int32()),
+        ("frame", pa.int32()),
+        ("time", pa.float64()),
+        ("box", pa.list_(pa.float32(), 4)),
+        ("keypoints", pa.list_(pa.float32(), 51)),
+        ("interpolated", pa.bool_()),
+    ]
+)
+
+
+@dataclass
+class Clip:
+    clip_id: str
+    track_id: int
+    frame: np.ndarray         # contiguous frame numbers
+    box: np.ndarray           # n x 4
+    keypoints: np.ndarray     # n x 17 x 3
+    interpolated: np.ndarray  # n bool
+
+
+@dataclass(frozen=True)
+class CleanFile:
+    segment: SegmentInfo
+    clips: list[Clip]
+    spans_from: str        # "manifest" or "proposal"
+    dropped_short: int
+    fingerprint: str
+
+    def time(self, clip: Clip) -> np.ndarray:
+        return np.asarray(clip.frame, np.int32) / self.segment.fps
+
+
+def clips_table(clips: list[Clip], fps: float) -> pa.Table:
+    n = sum(len(c.frame) for c in clips)
+    if not n:
+        return CLEAN_SCHEMA.empty_table()
+    frame = np.concatenate([c.frame for c in clips]).astype(np.int32)
+    return pa.Table.from_arrays([
+        pa.array(np.concatenate([[c.clip_id] * len(c.frame) for c in clips]), pa.string()),
+        pa.array(np.concatenate([np.full(len(c.frame), c.track_id) for c in clips]), pa.int32()),
+        pa.array(frame, pa.int32()),
+        pa.array(frame / fps, pa.float64()),
+        fixed_list(np.concatenate([c.box for c in clips]).reshape(-1, 4)),
+        fixed_list(np.concatenate([c.keypoints for c in clips]).reshape(-1, KEYPOINTS * 3)),
+        pa.array(np.concatenate([c.interpolated for c in clips]), pa.bool_()),
+    ], schema=CLEAN_SCHEMA)
+
+
+def write_clean(path: Path, clips: list[Clip], segment: SegmentInfo, *, spans_from: str, dropped_short: int,
+                fingerprint: str, params: Mapping[str, Any], inputs: Mapping[str, str]) -> None:
+    extra = {"fingerprint": fingerprint, **segment.as_meta(), "spans_from": spans_from,
+             "dropped_short": dropped_short}
+    write_parquet(clips_table(clips, segment.fps), path, schema_version=SCHEMA_VERSION, params=params, inputs=inputs,
+                  extra=extra)
+
+
+def read_clean(path: Path) -> CleanFile:
+    table = pq.read_table(path)
+    meta = read_meta(path)
+    ids = np.array(table.column("clip_id").to_pylist())
+    frame = column_array(table, "frame").astype(np.int64)
+    track = column_array(table, "track_id")
+    box = column_array(table, "box", (4,))
+    kps = column_array(table, "keypoints", (KEYPOINTS, 3))
+    interp = column_array(table, "interpolated").astype(bool)
+    clips = []
+    for clip_id in dict.fromkeys(ids):  # file order
+        rows = np.flatnonzero(ids == clip_id)
+        clips.append(Clip(str(clip_id), int(track[rows[0]]), frame[rows], box[rows], kps[rows], interp[rows]))
+    return CleanFile(SegmentInfo.from_meta(meta, path), clips, str(meta.get("spans_from", "manifest")),
+                     int(meta.get("dropped_short", 0)), str(meta.get("fingerprint", "")))

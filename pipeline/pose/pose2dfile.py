@@ -1,0 +1,108 @@
+"""The pose2d table (``data/pose2d/<segment_id>.parquet``): its schema, version, reader and writer.
+
+One row per detected person per frame (the top-k largest): frame, time (s, segment clock),
+person (rank by box area, 0 = largest), box (x1, y1, x2, y2, segment pixels), box_score,
+keypoints (COCO-17 x, y, score), detected (False: the box was carried over from the
+previous frame's keypoints). The file's metadata names the segment, its fps, frame count
+and frame size, the params and the models' sha256.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from pipeline.core.storage import column_array, fixed_list, read_meta, write_parquet
+
+SCHEMA_VERSION = 1
+KEYPOINTS = 17
+POSE2D_SCHEMA = pa.schema(
+    [
+        ("frame", pa.int32()),            # frame number on the segment clock (round(time * fps))
+        ("time", pa.float64()),           # seconds from the segment start
+        ("person", pa.int8()),            # rank by box area within the frame, 0 = largest
+        ("box", pa.list_(pa.float32(), 4)),          # x1, y1, x2, y2 in segment pixels
+        ("box_score", pa.float32()),
+        ("keypoints", pa.list_(pa.float32(), KEYPOINTS * 3)),  # COCO-17 (x, y, score) flattened
+        ("detected", pa.bool_()),         # False: box carried over from the previous keypoints
+    ]
+)
+
+
+@dataclass(frozen=True)
+class SegmentInfo:
+    """What every per-segment table's metadata says about its segment."""
+
+    segment_id: str
+    fps: float
+    frames: int     # frames in the segment
+    width: int
+    height: int
+
+    def as_meta(self) -> dict[str, Any]:
+        return {"segment_id": self.segment_id, "fps": self.fps, "frames": self.frames, "width": self.width,
+                "height": self.height}
+
+    @staticmethod
+    def from_meta(meta: Mapping[str, Any], path: Path) -> "SegmentInfo":
+        return SegmentInfo(str(meta.get("segment_id") or Path(path).stem), float(meta["fps"]), int(meta["frames"]),
+                           int(meta["width"]), int(meta["height"]))
+
+
+@dataclass(frozen=True)
+class Poses:
+    """Per-person rows of one segment, in frame order."""
+
+    frame: np.ndarray      # N int
+    time: np.ndarray       # N float
+    person: np.ndarray     # N int
+    box: np.ndarray        # N x 4
+    box_score: np.ndarray  # N
+    keypoints: np.ndarray  # N x 17 x 3
+    detected: np.ndarray   # N bool
+
+    def __len__(self) -> int:
+        return len(self.frame)
+
+    def table(self) -> pa.Table:
+        return pa.Table.from_arrays([
+            pa.array(np.asarray(self.frame, np.int32), pa.int32()),
+            pa.array(np.asarray(self.time, np.float64), pa.float64()),
+            pa.array(np.asarray(self.person, np.int8), pa.int8()),
+            fixed_list(np.asarray(self.box, np.float32).reshape(-1, 4)),
+            pa.array(np.asarray(self.box_score, np.float32), pa.float32()),
+            fixed_list(np.asarray(self.keypoints, np.float32).reshape(-1, KEYPOINTS * 3)),
+            pa.array(np.asarray(self.detected, bool), pa.bool_()),
+        ], schema=POSE2D_SCHEMA)
+
+    @staticmethod
+    def from_table(table: pa.Table) -> "Poses":
+        return Poses(frame=column_array(table, "frame").astype(np.int64), time=column_array(table, "time"),
+                     person=column_array(table, "person").astype(np.int64), box=column_array(table, "box", (4,)),
+                     box_score=column_array(table, "box_score"),
+                     keypoints=column_array(table, "keypoints", (KEYPOINTS, 3)),
+                     detected=column_array(table, "detected").astype(bool))
+
+
+@dataclass(frozen=True)
+class Pose2dFile:
+    segment: SegmentInfo
+    poses: Poses
+    fingerprint: str
+
+
+def write_pose2d(path: Path, poses: Poses, segment: SegmentInfo, *, fingerprint: str, params: Mapping[str, Any],
+                 inputs: Mapping[str, str]) -> None:
+    write_parquet(poses.table(), path, schema_version=SCHEMA_VERSION, params=params, inputs=inputs,
+                  extra={"fingerprint": fingerprint, **segment.as_meta()})
+
+
+def read_pose2d(path: Path) -> Pose2dFile:
+    meta = read_meta(path)
+    return Pose2dFile(SegmentInfo.from_meta(meta, path), Poses.from_table(pq.read_table(path)),
+                      str(meta.get("fingerprint", "")))
