@@ -19,7 +19,7 @@ from pipeline.pose.pose2dfile import Poses, SegmentInfo
 from pipeline.pose.trackfile import read_tracks
 from pipeline.pose.trackfile import write_tracks as write_tracks_file
 from tests.conftest import ffmpeg, run_stages, set_params, write_sources
-from tests.test_tracking import person
+from tests.pose.test_tracking import person
 
 FPS = 24.0
 HEADER = "track_id,start,end,keep,note,frames,mean_score,box_height,motion,reason\n"

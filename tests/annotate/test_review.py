@@ -14,8 +14,8 @@ import pytest
 
 from pipeline.annotate.proposals import ProposalOptions
 from pipeline.annotate.review.server import ReviewApp, serve
+from tests.annotate.test_annotation import write_tracks
 from tests.conftest import PROJECT, make_test_video, skip_or_fail
-from tests.test_annotation import write_tracks
 
 
 @pytest.fixture

@@ -15,10 +15,10 @@ from pipeline.core.params import load_params
 from pipeline.ingest.catalog import read_ledger
 from pipeline.ingest.sources import read_sources
 from pipeline.pose.pose2dfile import read_pose2d
+from tests.annotate.test_annotation import HEADER as MANIFEST_HEADER
+from tests.annotate.test_annotation import write_tracks
 from tests.conftest import PROJECT, ffmpeg, make_test_video, run_stages, set_params
-from tests.test_annotation import HEADER as MANIFEST_HEADER
-from tests.test_annotation import write_tracks
-from tests.test_download import _Server
+from tests.ingest.test_download import _Server
 
 GOOD = "dance_solo_384x496_30fps.mp4"
 
