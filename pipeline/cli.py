@@ -31,6 +31,8 @@ examples:
   dance3d manifests check     validate manifests: every problem as file:line: reason
   dance3d render data/motion24/musepose_dance_000.parquet musepose_dance_000_1_0 clip.mp4
                               draw a 3D clip (front and side views) with its music
+  dance3d eval beats --audio song.ogg --beats song.beats
+                              score the beat tracker against your annotations (mir_eval)
   dance3d models fetch        download, convert and verify the default detector and pose model
   dance3d models convert-videopose3d pretrained_h36m_detectron_coco.bin models/lifter.onnx
                               use the official VideoPose3D weights as the lifter
@@ -86,6 +88,20 @@ def _parser() -> argparse.ArgumentParser:
     sample.add_argument("--corpus", type=Path, default=Path("data/corpus"), help="where the seed window comes from")
     sample.add_argument("--seed-frames", type=int, default=24, help="frames of the seed pose (default 24)")
     sample.add_argument("--temperature", type=float, default=0.0, help="0: most likely bins; > 0: sample")
+    evaluate = sub.add_parser("eval", help="measure quality on data you bring (beats)",
+                              description="Quality measures against your own annotated data.")
+    evaluate_sub = evaluate.add_subparsers(dest="what", required=True, metavar="WHAT")
+    beats = evaluate_sub.add_parser(
+        "beats", help="the beat tracker against beat annotations (mir_eval)",
+        description="Track beats in an audio file and score them against human annotations with mir_eval "
+                    "(F-measure +-70 ms, CMLt, AMLt, Cemgil, Goto, tempo error; downbeat F-measure when the "
+                    "annotation has bar positions; beats before 5 s ignored), next to the previous default "
+                    "(tracking on the motion-rate onset envelope).",
+        epilog="annotation format: one beat per line, 'time' or 'time bar_position' (1 = downbeat), "
+               "separated by spaces, commas or semicolons; '#' starts a comment.")
+    beats.add_argument("--audio", type=Path, required=True, help="any audio (or video) file ffmpeg reads")
+    beats.add_argument("--beats", type=Path, required=True, help="the annotation file")
+    beats.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
     models = sub.add_parser("models", help="model utilities (fetch, convert-videopose3d)")
     models_sub = models.add_subparsers(dest="action", required=True, metavar="ACTION")
     fetch = models_sub.add_parser(
@@ -106,6 +122,22 @@ def _parser() -> argparse.ArgumentParser:
     convert.add_argument("checkpoint", type=Path)
     convert.add_argument("out", type=Path)
     return parser
+
+
+def _eval(args: argparse.Namespace) -> int:
+    import json
+
+    from pipeline.music.evaluate import evaluate_beats, format_table
+
+    try:
+        result = evaluate_beats(args.audio, args.beats)
+    except Dance3dError as exc:
+        print(f"dance3d: {exc}", file=sys.stderr)
+        return 2
+    print(format_table(result))
+    if args.out:
+        args.out.write_text(json.dumps(result, indent=2) + "\n")
+    return 0
 
 
 def _fetch_models(root: Path, args: argparse.Namespace) -> int:
@@ -144,6 +176,8 @@ def main(argv: list[str] | None = None) -> int:
         return _sample(root, args)
     if args.command == "render":
         return _render(root, args)
+    if args.command == "eval":
+        return _eval(args)
     if args.command == "models" and args.action == "fetch":
         return _fetch_models(root, args)
     if args.command == "models":

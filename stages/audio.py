@@ -11,7 +11,7 @@ from pathlib import Path
 import pipeline.music.audio
 import pipeline.music.featurefile
 from pipeline.core.itemstage import WorkItem, run_item_stage
-from pipeline.core.params import load_params, stage_params
+from pipeline.core.params import corpus_fps, load_params, stage_params
 from pipeline.core.paths import AUDIO, AUDIO_FEATURES, METRICS, SEGMENTS
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta, write_json
@@ -24,7 +24,8 @@ CODE = code_fingerprint(pipeline.music.audio, pipeline.music.featurefile)
 
 
 def run(root: Path) -> None:
-    params = stage_params(load_params(root / "params.yaml"), "audio")
+    all_params = load_params(root / "params.yaml")
+    params = {**stage_params(all_params, "audio"), "fps": corpus_fps(all_params)}
     opts = LoudnessOptions(target_lufs=float(params.get("target_lufs", -23.0)),
                            true_peak=float(params.get("true_peak", -2.0)),
                            loudness_range=float(params.get("loudness_range", 7.0)))
@@ -37,8 +38,8 @@ def run(root: Path) -> None:
         inputs = {"segment": seg["fingerprint"]}
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out_wav, out_features = root / AUDIO / f"{seg_id}.wav", root / AUDIO_FEATURES / f"{seg_id}.parquet"
-        job = AudioJob(root / SEGMENTS / seg["wav_path"], out_wav, out_features, opts, tuple(extra_sets), params,
-                       inputs, fp)
+        job = AudioJob(root / SEGMENTS / seg["wav_path"], out_wav, out_features, opts, tuple(extra_sets),
+                       params["fps"], params, inputs, fp)
         items.append(WorkItem(seg_id, fp, (out_features, out_wav), job))
     if silent:
         log.info("%d segments have no audio track and are left out downstream: %s", len(silent), ", ".join(silent))

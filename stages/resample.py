@@ -1,5 +1,5 @@
 """resample stage: data/smooth -> data/motion24/<segment_id>.parquet (cubic spline, exactly 24 fps:
-frame k at k / 24 s on the segment clock)."""
+frame k at k / fps s on the segment clock; fps is common.fps, 24 by default)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pipeline.motion.resample
 from pipeline.core.itemstage import WorkItem, run_item_stage
-from pipeline.core.params import load_params, stage_params
+from pipeline.core.params import corpus_fps, load_params, stage_params
 from pipeline.core.paths import MOTION24, SMOOTH
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta
@@ -19,13 +19,14 @@ CODE = code_fingerprint(pipeline.motion.resample)
 
 
 def run(root: Path) -> None:
-    params = stage_params(load_params(root / "params.yaml"), "resample")
+    all_params = load_params(root / "params.yaml")
+    params = {**stage_params(all_params, "resample"), "fps": corpus_fps(all_params)}
     items = []
     for src in item_files(root / SMOOTH):
         inputs = {"smooth": read_meta(src).get("fingerprint", "")}
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out = root / MOTION24 / src.name
-        items.append(WorkItem(src.stem, fp, (out,), ResampleJob(src, out, params, inputs, fp)))
+        items.append(WorkItem(src.stem, fp, (out,), ResampleJob(src, out, params["fps"], params, inputs, fp)))
     run_item_stage("resample", items, resample_segment, out_dirs=[root / MOTION24], params=params)
 
 

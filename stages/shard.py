@@ -7,7 +7,7 @@ import logging
 import sys
 from pathlib import Path
 
-from pipeline.core.params import load_params, stage_params
+from pipeline.core.params import corpus_fps, load_params, stage_params
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.corpus.build import collect_windows, write_card_and_metrics, write_shards
 
@@ -15,16 +15,18 @@ log = logging.getLogger("dance3d.shard")
 
 
 def run(root: Path) -> None:
-    params = stage_params(load_params(root / "params.yaml"), "shard")
-    window = int(round(float(params.get("window_seconds", 20)) * 24))
-    hop = int(round(float(params.get("hop_seconds", 10)) * 24))
-    windows, counts = collect_windows(root, window, hop, float(params.get("val_fraction", 0.2)))
+    all_params = load_params(root / "params.yaml")
+    fps = corpus_fps(all_params)
+    params = {**stage_params(all_params, "shard"), "fps": fps}
+    window = int(round(float(params.get("window_seconds", 20)) * fps))
+    hop = int(round(float(params.get("hop_seconds", 10)) * fps))
+    windows, counts = collect_windows(root, window, hop, float(params.get("val_fraction", 0.2)), fps)
     written = write_shards(root, windows, window, int(params.get("windows_per_shard", 256)),
-                           int(params.get("row_group_windows", 32)), params)
+                           int(params.get("row_group_windows", 32)), params, fps)
     log.info("%d windows: %d train, %d val (%d clips, %d without audio, %d shorter than a window)", len(windows),
              written["train"], written["val"], counts["clips"], counts["clips_without_audio"],
              counts["clips_too_short"])
-    write_card_and_metrics(root, windows, counts, params, window, hop)
+    write_card_and_metrics(root, windows, counts, params, window, hop, fps)
 
 
 def main() -> int:

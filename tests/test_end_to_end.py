@@ -78,6 +78,13 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     assert windows == corpus["windows_train"] + corpus["windows_val"] > 0
     assert corpus["clips_without_audio"] == 2  # the silent solo clip's two segments
     assert "## Statistics" in (root / "data/corpus/card.md").read_text()
+    alignment = corpus["beat_alignment"]  # matched and shuffled music, on the demo's windows
+    assert alignment["windows"] == windows and 0 <= alignment["matched_beat_align_score"] <= 1
+    assert 0 <= alignment["shuffled_beat_align_score"] <= 1
+    assert "## Motion–music alignment" in (root / "data/corpus/card.md").read_text()
+    beats = pq.read_table(shards[0], columns=["beat", "beat_frames", "motion_beat_frames"]).to_pylist()[0]
+    assert beats["beat_frames"] == [i for i, flag in enumerate(beats["beat"]) if flag]  # flags and frames agree
+    assert beats["motion_beat_frames"]
     assert (root / "models/tsmt.pt").exists() and json.loads((root / "metrics/train.json").read_text())["steps"] == 40
     metrics = _dvc(root, "metrics", "show")
     assert metrics.returncode == 0 and "val_mpjpe_mm" in metrics.stdout and "windows_train" in metrics.stdout

@@ -34,3 +34,11 @@ def stage_params(params: dict[str, Any], stage: str) -> dict[str, Any]:
         if key in common and key not in section:
             section[key] = common[key]
     return section
+
+
+def corpus_fps(params: dict[str, Any]) -> float:
+    """The corpus frame rate (``common.fps``, 24 by default): motion and every audio feature share it."""
+    fps = float((params.get("common") or {}).get("fps", 24))
+    if not 1 <= fps <= 240:
+        raise InputError("params.yaml", f"common.fps must be between 1 and 240, not {fps:g}")
+    return fps

@@ -8,18 +8,40 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
+import numpy as np
+
 from pipeline.core.ids import video_id_of_segment
 from pipeline.core.paths import AUDIO_FEATURES, CLEAN, CORPUS, METRICS, MOTION24, RAW, SEGMENTS, TRACKS
 from pipeline.core.storage import atomic_path, item_files, read_meta, write_json, write_parquet
 from pipeline.corpus.card import channel_stats, durations_csv, histogram_png, render_card
-from pipeline.corpus.windows import SCHEMA_VERSION, Window, split_of, window_starts, windows_table
+from pipeline.corpus.windows import FPS, SCHEMA_VERSION, Window, split_of, window_starts, windows_table
 from pipeline.ingest.catalog import read_index, read_ledger
 from pipeline.motion.motionfile import clip_frame_counts, read_motion
-from pipeline.music.featurefile import read_features
+from pipeline.music.alignment import beat_align_score, beat_f1, kinematic_beats, shuffled_pairs
+from pipeline.music.featurefile import FeatureFile, read_features
 from pipeline.pose.trackfile import read_tracks
 
 
-def collect_windows(root: Path, window: int, hop: int, val_fraction: float) -> tuple[list[Window], dict]:
+def _in_window(times: np.ndarray, k: int, window: int, fps: float) -> list[int]:
+    """Beat times (s, segment clock) as frame indices inside the window starting at frame k."""
+    frames = np.rint(np.asarray(times) * fps).astype(int) - k
+    return [int(f) for f in frames if 0 <= f < window]
+
+
+def window_beats(feats: FeatureFile, motion: np.ndarray, k: int, window: int, fps: float) -> dict:
+    """The beat columns of one window: music beats, downbeats, motion beats and their alignment."""
+    start, end = k / fps, (k + window) / fps
+    music = np.asarray([t - start for t in feats.beat_times if start <= t < end])
+    motion_beats = kinematic_beats(motion, fps)
+    return {"beat_frames": _in_window(feats.beat_times, k, window, fps),
+            "downbeat_frames": _in_window(np.asarray(feats.meta.get("downbeat_times", [])), k, window, fps),
+            "motion_beat_frames": [int(f) for f in motion_beats],
+            "beat_align_score": beat_align_score(music, motion_beats / fps),
+            "beat_f1": beat_f1(music, motion_beats / fps, fps)}
+
+
+def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
+                    fps: float = FPS) -> tuple[list[Window], dict]:
     ledger = {r["video_id"]: r for r in read_ledger(root / RAW).values() if r["status"] == "ok"}
     segments = read_index(root / SEGMENTS)
     windows: list[Window] = []
@@ -28,12 +50,16 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float) -> t
         seg_id = motion_file.stem
         seg = segments.get(seg_id)
         feature_file = root / AUDIO_FEATURES / f"{seg_id}.parquet"
-        clips = read_motion(motion_file).clips
+        motion = read_motion(motion_file)
+        clips = motion.clips
         counts["clips"] += len(clips)
         if seg is None or not feature_file.exists():
             counts["clips_without_audio"] += len(clips)
             continue
         feats = read_features(feature_file)
+        for name, rate in (("motion", motion.fps), ("audio features", float(feats.meta.get("fps", FPS)))):
+            if abs(rate - fps) > 1e-9:
+                raise ValueError(f"{seg_id}: {name} at {rate:g} fps, the corpus at {fps:g}: re-run resample and audio")
         video = ledger.get(seg["video_id"], {})
         for clip in clips:
             starts = [k for k in window_starts(int(clip.frame[0]), len(clip.frame), window, hop)
@@ -42,20 +68,47 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float) -> t
                 counts["clips_too_short"] += 1
             for k in starts:
                 i = k - int(clip.frame[0])
+                joints = clip.joints[i: i + window]
                 meta = {"window_id": f"{clip.clip_id}_w{k:06d}", "split": split_of(seg["video_id"], val_fraction),
                         "video_id": seg["video_id"], "url": video.get("url", ""), "title": video.get("title", ""),
                         "channel": video.get("channel", ""), "style": video.get("style", ""),
                         "licence": video.get("licence", ""), "segment_id": seg_id, "clip_id": clip.clip_id,
-                        "track_id": clip.track_id, "start_frame": k, "start_time": k / 24,
-                        "segment_start": seg["start"], "tempo": feats.tempo}
-                windows.append(Window(meta, clip.joints[i: i + window], feats.mfcc[k: k + window],
-                                      feats.chroma[k: k + window], feats.onset[k: k + window],
-                                      feats.beat[k: k + window]))
+                        "track_id": clip.track_id, "start_frame": k, "start_time": k / fps,
+                        "segment_start": seg["start"], "tempo": feats.tempo,
+                        **window_beats(feats, joints, k, window, fps)}
+                windows.append(Window(meta, joints, feats.mfcc[k: k + window], feats.chroma[k: k + window],
+                                      feats.onset[k: k + window], feats.beat[k: k + window]))
     return windows, counts
 
 
+def alignment_summary(windows: list[Window], fps: float, seed: int = 0) -> dict:
+    """Beat alignment of every window with its own music and with another video's (shuffled)."""
+    if not windows:
+        return {"windows": 0}
+    partners = shuffled_pairs([w.meta["video_id"] for w in windows], seed)
+    matched = {"bas": [], "f1": []}
+    shuffled = {"bas": [], "f1": []}
+    for w, j in zip(windows, partners):
+        motion = np.asarray(w.meta["motion_beat_frames"], float) / fps
+        other = np.asarray(windows[j].meta["beat_frames"], float) / fps
+        own = np.asarray(w.meta["beat_frames"], float) / fps
+        matched["bas"].append(beat_align_score(own, motion))
+        matched["f1"].append(beat_f1(own, motion, fps))
+        shuffled["bas"].append(beat_align_score(other, motion))
+        shuffled["f1"].append(beat_f1(other, motion, fps))
+
+    def mean(values: list[float]) -> float:
+        good = [v for v in values if v == v]
+        return round(float(np.mean(good)), 4) if good else float("nan")
+
+    return {"windows": len(windows), "matched_beat_align_score": mean(matched["bas"]),
+            "shuffled_beat_align_score": mean(shuffled["bas"]), "matched_beat_f1": mean(matched["f1"]),
+            "shuffled_beat_f1": mean(shuffled["f1"]),
+            "shuffle": "each window's motion beats against the music beats of a window of another video (seeded)"}
+
+
 def write_shards(root: Path, windows: list[Window], window: int, per_shard: int, row_group: int,
-                 params: dict) -> dict[str, int]:
+                 params: dict, fps: float = FPS) -> dict[str, int]:
     written = {}
     for split in ("train", "val"):
         folder = root / CORPUS / split
@@ -65,15 +118,15 @@ def write_shards(root: Path, windows: list[Window], window: int, per_shard: int,
         for n, start in enumerate(range(0, len(rows), per_shard)):
             table = windows_table(rows[start: start + per_shard], window)
             write_parquet(table, folder / f"shard-{n:05d}.parquet", schema_version=SCHEMA_VERSION, params=params,
-                          extra={"fps": 24, "window_frames": window, "joints": "h36m17", "units": "metres",
-                                 "alignment": "motion and audio frame k centred at k/24 s on the segment clock"},
+                          extra={"fps": fps, "window_frames": window, "joints": "h36m17", "units": "metres",
+                                 "alignment": f"motion and audio frame k centred at k/{fps:g} s on the segment clock"},
                           row_group_size=row_group)
         written[split] = len(rows)
     return written
 
 
 def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, params: dict, window: int,
-                           hop: int) -> None:
+                           hop: int, fps: float = FPS) -> None:
     ledger = list(read_ledger(root / RAW).values())
     index = read_index(root / SEGMENTS)
     segments = list(index.values())
@@ -101,14 +154,15 @@ def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, para
         covered.setdefault(m["clip_id"], set()).update(range(m["start_frame"], m["start_frame"] + window))
     distinct_frames = sum(len(frames) for frames in covered.values())
     totals = {"windows_train": n_train, "windows_val": len(metas) - n_train,
-              "window_minutes": distinct_frames / 24 / 60}
+              "window_minutes": distinct_frames / fps / 60}
     series = {"source videos": [r["duration"] for r in ledger if r["status"] == "ok"],
               "trimmed segments": [s["frames"] / s["fps"] for s in segments], "clips": clip_seconds}
-    card_params = {"window_seconds": window / 24, "hop_seconds": hop / 24}
+    card_params = {"window_seconds": window / fps, "hop_seconds": hop / fps, "fps": fps}
+    alignment = alignment_summary(windows, fps)
     (root / CORPUS).mkdir(parents=True, exist_ok=True)
     histogram_png(root / CORPUS / "durations.png", series)
     with atomic_path(root / CORPUS / "card.md") as tmp:
-        tmp.write_text(render_card(stats, ledger, card_params, totals))
+        tmp.write_text(render_card(stats, ledger, card_params, totals, alignment))
     durations_csv(root / METRICS / "durations.csv", {"videos": series["source videos"],
                                                      "segments": series["trimmed segments"], "clips": clip_seconds})
     total = stats[-1] if stats else {}
@@ -117,5 +171,6 @@ def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, para
                "track_ids_per_video": total.get("track_ids_per_video", 0.0),
                "track_minutes": total.get("track_minutes", 0.0), "windows_train": totals["windows_train"],
                "windows_val": totals["windows_val"], "clips": counts["clips"],
-               "clips_without_audio": counts["clips_without_audio"], "clips_too_short": counts["clips_too_short"]}
+               "clips_without_audio": counts["clips_without_audio"], "clips_too_short": counts["clips_too_short"],
+               "beat_alignment": alignment}
     write_json(root / METRICS / "corpus.json", metrics)

@@ -84,8 +84,23 @@ def durations_csv(path: Path, series: dict[str, list[float]], bin_seconds: float
         tmp.write_text("\n".join(lines) + "\n")
 
 
-def render_card(stats: list[dict], ledger: list[dict], params: dict, totals: dict) -> str:
+def _alignment_text(a: dict | None) -> str:
+    if not a or not a.get("windows"):
+        return "No windows yet, so no alignment figures."
+    return (f"Over {a['windows']} windows, motion beats against the window's own music beats and against the "
+            f"beats of a window of another video (shuffled, seeded):\n\n"
+            f"| score | matched | shuffled |\n|---|---|---|\n"
+            f"| beat-align score (AIST++) | {a['matched_beat_align_score']} | {a['shuffled_beat_align_score']} |\n"
+            f"| beat-consistency F-score (2 frames) | {a['matched_beat_f1']} | {a['shuffled_beat_f1']} |\n\n"
+            "A corpus whose motion follows its music scores clearly higher matched than shuffled; no gap "
+            "means the motion and the music are out of sync somewhere in the pipeline, or the dancers do "
+            "not dance to the beat.")
+
+
+def render_card(stats: list[dict], ledger: list[dict], params: dict, totals: dict,
+                alignment: dict | None = None) -> str:
     window, hop = params["window_seconds"], params["hop_seconds"]
+    fps = params.get("fps", 24)
     header = ("| channel | videos | minutes | trimmed segments | trimmed minutes | track ids / video | "
               "track minutes | windows train | windows val |\n|---|---|---|---|---|---|---|---|---|\n")
     table = "".join(f"| {r['channel']} | {r['videos']} | {r['minutes']} | {r['segments']} | {r['segment_minutes']} | "
@@ -113,22 +128,32 @@ PyTorch loader is `pipeline.train.dataset.WindowDataset`. Each file's key-value 
 | split | string | train or val (by video: a hash of video_id, so no video is in both) |
 | video_id, url, title, channel, style, licence | string | provenance of the source video |
 | segment_id, clip_id, track_id | string, string, int32 | the trimmed segment, the cleaned clip (one dancer), its track |
-| start_frame, start_time | int32, float64 | first frame k of the window and k/24 s, on the segment clock |
+| start_frame, start_time | int32, float64 | first frame k of the window and k/{fps:g} s, on the segment clock |
 | segment_start | float64 | where the segment starts in the source video (s) |
-| motion | {window * 24} x 17 x 3 float32 | Human3.6M-17 joints, metres, root-relative, camera frame (x right, y down, z away) |
-| mfcc | {window * 24} x 39 float32 | MFCC-13, deltas, delta-deltas |
-| chroma | {window * 24} x 12 float32 | chroma (STFT) |
-| onset | {window * 24} float32 | onset strength |
-| beat | {window * 24} int8 | 1 on frames holding a beat (librosa beat tracker) |
+| motion | {round(window * fps)} x 17 x 3 float32 | Human3.6M-17 joints, metres, root-relative, camera frame (x right, y down, z away) |
+| mfcc | {round(window * fps)} x 39 float32 | MFCC-13, deltas, delta-deltas |
+| chroma | {round(window * fps)} x 12 float32 | chroma (STFT) |
+| onset | {round(window * fps)} float32 | onset strength |
+| beat | {round(window * fps)} int8 | 1 on the frame nearest to each music beat |
 | tempo | float32 | estimated tempo of the segment (BPM) |
+| beat_frames | list of int32 | music beats as frame indices in the window (tracked at 22050 Hz, exact times in the audio features) |
+| downbeat_frames | list of int32 | estimated bar starts (low-band accent over 3 or 4 beats per bar: a heuristic) |
+| motion_beat_frames | list of int32 | kinematic beats: local minima of the smoothed mean joint speed (AIST++) |
+| beat_align_score | float32 | AIST++ beat-align score of the window (sigma 0.05 s; NaN without music beats) |
+| beat_f1 | float32 | beat-consistency F-score of motion beats against music beats, 2-frame tolerance |
 
 Joint order: {joints}.
 
-Frame rate and alignment: exactly 24 fps. Motion frame k and audio feature frame k of a
-window are both centred at k/24 s on the segment clock (audio resampled to 12288 Hz,
-hop 512, centred frames), so there is no drift. Motion was lifted from 2D keypoints by a
+Frame rate and alignment: exactly {fps:g} fps (`common.fps`). Motion frame k and audio feature
+frame k of a window are both centred at k/{fps:g} s on the segment clock (audio resampled to
+{round(fps * 512)} Hz, hop 512, centred frames), so there is no drift. Key poses at beats are
+`motion[beat_frames]`. Motion was lifted from 2D keypoints by a
 VideoPose3D-style model, smoothed with a Hodrick-Prescott filter (lambda from params) and
 resampled with a cubic spline. Audio was loudness-normalised to EBU R128 before features.
+
+## Motion–music alignment
+
+{_alignment_text(alignment)}
 
 ## Statistics
 

@@ -1,9 +1,11 @@
-"""The corpus: 24 fps motion clips joined with their music features, cut into overlapping
-windows, split by video, written as Parquet shards.
+"""The corpus window contract: motion clips at the corpus rate joined with their music
+features, cut into overlapping windows, split by video, written as Parquet shards.
 
 A window of ``W`` frames starting at frame k holds motion frames k .. k+W-1 of one clip
-and the audio feature frames with the same numbers: both are centred at k/24 s on the
-segment clock. Windows start every ``H`` frames from the clip's first frame; a clip
+and the audio feature frames with the same numbers: both are centred at k/fps s on the
+segment clock (fps = ``common.fps``, 24 by default). Beat columns give frame indices
+inside the window (music beats, estimated downbeats, motion beats) and two alignment
+scores (``pipeline.music.alignment``). Windows start every ``H`` frames from the clip's first frame; a clip
 shorter than one window gives none. The train/val split is by video (a hash of its id),
 so the overlapping windows of one video never straddle the split.
 """
@@ -16,9 +18,12 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 
-SCHEMA_VERSION = 1
-FPS = 24
+SCHEMA_VERSION = 2  # 2: beat, downbeat and motion-beat frames, alignment scores; any frame rate
+FPS = 24  # the default corpus rate
 MFCC_DIMS = 39
+# A window built without beat analysis (tests, benchmarks) has no beats: empty lists, NaN scores.
+BEAT_DEFAULTS = {"beat_frames": [], "downbeat_frames": [], "motion_beat_frames": [], "beat_align_score": float("nan"),
+                 "beat_f1": float("nan")}
 CHROMA_DIMS = 12
 
 
@@ -49,6 +54,11 @@ def corpus_schema(window: int) -> pa.Schema:
         ("onset", fixed(pa.float32(), window)),
         ("beat", fixed(pa.int8(), window)),
         ("tempo", pa.float32()),
+        ("beat_frames", pa.list_(pa.int32())),         # music beats: frame indices inside the window
+        ("downbeat_frames", pa.list_(pa.int32())),     # estimated bar starts (a subset of beat_frames)
+        ("motion_beat_frames", pa.list_(pa.int32())),  # kinematic beats of the window's motion
+        ("beat_align_score", pa.float32()),            # AIST++ beat-align score (NaN: no music beats)
+        ("beat_f1", pa.float32()),                     # seed beat-consistency F-score, 2-frame tolerance
     ])
 
 
@@ -71,7 +81,8 @@ def _nested(values: np.ndarray, dtype: pa.DataType, shape: tuple[int, ...]) -> p
 
 def windows_table(windows: list[Window], window: int) -> pa.Table:
     schema = corpus_schema(window)
-    scalars = {name: [w.meta[name] for w in windows] for name in schema.names
+    scalars = {name: [w.meta.get(name, BEAT_DEFAULTS.get(name)) if name in BEAT_DEFAULTS else w.meta[name]
+                      for w in windows] for name in schema.names
                if name not in ("motion", "mfcc", "chroma", "onset", "beat")}
     n = len(windows)
 

@@ -1,6 +1,6 @@
-"""Cubic-spline resampling of motion to exactly 24 fps on the segment clock.
+"""Cubic-spline resampling of motion to exactly the corpus rate (``common.fps``, 24 by default).
 
-Frame k of the output lies at ``k / 24`` seconds on the segment's clock (the same grid
+Frame k of the output lies at ``k / fps`` seconds on the segment's clock (the same grid
 as the audio features); a clip covers the grid points from its first to its last source
 frame, with no extrapolation. A not-a-knot cubic spline reproduces cubic polynomials
 exactly, so smooth motion is not distorted.
@@ -15,17 +15,17 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-TARGET_FPS = 24
+TARGET_FPS = 24  # the default corpus rate
 
 
-def grid_frames(t_first: float, t_last: float, fps: int = TARGET_FPS) -> np.ndarray:
+def grid_frames(t_first: float, t_last: float, fps: float = TARGET_FPS) -> np.ndarray:
     """Integer frame numbers k with t_first <= k / fps <= t_last (a hair of tolerance)."""
     first = math.ceil(t_first * fps - 1e-6)
     last = math.floor(t_last * fps + 1e-6)
     return np.arange(first, last + 1, dtype=np.int64)
 
 
-def resample_cubic(times: np.ndarray, values: np.ndarray, fps: int = TARGET_FPS) -> tuple[np.ndarray, np.ndarray]:
+def resample_cubic(times: np.ndarray, values: np.ndarray, fps: float = TARGET_FPS) -> tuple[np.ndarray, np.ndarray]:
     """Resample ``values`` (T x ...) given at ``times`` to the ``fps`` grid: (frame numbers, values)."""
     frames = grid_frames(float(times[0]), float(times[-1]), fps)
     new_times = np.clip(frames / fps, times[0], times[-1])
@@ -43,6 +43,7 @@ def resample_cubic(times: np.ndarray, values: np.ndarray, fps: int = TARGET_FPS)
 class ResampleJob:
     smooth: Path
     out: Path
+    fps: float
     params: dict
     inputs: dict
     fingerprint: str
@@ -54,13 +55,13 @@ def resample_segment(job: ResampleJob) -> dict:
     motion = read_motion(job.smooth)
     clips = []
     for clip in motion.clips:
-        frames, joints = resample_cubic(clip.time, clip.joints)
+        frames, joints = resample_cubic(clip.time, clip.joints, job.fps)
         if not len(frames):
             continue
-        near = np.clip(np.searchsorted(clip.time, frames / TARGET_FPS), 0, len(clip.time) - 1)
-        clips.append(MotionClip(clip.clip_id, clip.track_id, frames, frames / TARGET_FPS, joints.astype(np.float32),
+        near = np.clip(np.searchsorted(clip.time, frames / job.fps), 0, len(clip.time) - 1)
+        clips.append(MotionClip(clip.clip_id, clip.track_id, frames, frames / job.fps, joints.astype(np.float32),
                                 clip.interpolated[near], clip.filled_joints[near]))
-    segment = {"fps": TARGET_FPS, "source_fps": motion.meta.get("fps"),
+    segment = {"fps": job.fps, "source_fps": motion.meta.get("fps"),
                **{k: motion.meta.get(k) for k in ("segment_id", "width", "height")}}
     write_motion(job.out, clips, segment, fingerprint=job.fingerprint, params=job.params, inputs=job.inputs)
     return {"clips": len(clips)}

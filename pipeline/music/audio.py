@@ -1,9 +1,10 @@
-"""Audio: EBU R128 loudness normalisation and music features on the motion's 24 fps clock.
+"""Audio: EBU R128 loudness normalisation and music features on the motion's clock.
 
-Alignment rule: features are computed from the audio resampled to 24 x 512 = 12288 Hz
-with a hop of 512 samples and centred frames, so feature frame k is centred at exactly
-k / 24 s on the segment clock, the same instant as motion frame k. There is no drift:
-the hop is an exact 1/24 s, not a rounded 44100/24.
+Alignment rule: features are computed from the audio resampled to fps x 512 Hz (12288 Hz
+at the default 24 fps) with a hop of 512 samples and centred frames, so feature frame k is
+centred at exactly k / fps s on the segment clock, the same instant as motion frame k.
+There is no drift: the hop is an exact 1/fps s, not a rounded 44100/fps. Beats are tracked
+on full-resolution audio (``beats.py``) and placed on that grid from their exact times.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import numpy as np
 from pipeline.core.errors import MediaError
 from pipeline.core.storage import atomic_path
 from pipeline.ingest.media import ffmpeg_exe
+from pipeline.music.beats import BEAT_HOP, BEAT_SR, DOWNBEAT_METHOD, Beats, beat_flags, track_beats
 
 FPS = 24
 HOP = 512
@@ -92,44 +94,66 @@ def normalise_loudness(src: Path, out: Path, opts: LoudnessOptions, audio_stream
 @dataclass
 class AudioFeatures:
     frames: int
+    fps: float
     mfcc: np.ndarray       # frames x 39: MFCC-13, delta, delta-delta
     chroma: np.ndarray     # frames x 12
     onset: np.ndarray      # frames: onset strength
-    beat: np.ndarray       # frames: 1 where a beat falls in the frame, else 0
-    beat_times: np.ndarray  # seconds on the segment clock
+    beat: np.ndarray       # frames: 1 on the frame nearest to each beat, else 0
+    beat_times: np.ndarray  # seconds on the segment clock (exact, from the full-resolution tracker)
+    downbeat_times: np.ndarray
+    beats_per_bar: int
     tempo: float           # beats per minute
     extra: dict            # optional feature sets, name -> frames x d
 
 
-def load_for_features(path: Path) -> np.ndarray:
-    y, _ = librosa.load(str(path), sr=FEATURE_SR, mono=True)
+def feature_rate(fps: float) -> int:
+    """The sample rate whose hop of HOP samples is exactly one motion frame."""
+    rate = fps * HOP
+    if abs(rate - round(rate)) > 1e-9:
+        raise ValueError(f"fps {fps} x hop {HOP} is not a whole sample rate")
+    return int(round(rate))
+
+
+def load_for_features(path: Path, fps: float = FPS) -> np.ndarray:
+    y, _ = librosa.load(str(path), sr=feature_rate(fps), mono=True)
     return y
 
 
-def compute_features(y: np.ndarray, extra_sets: tuple[str, ...] = ()) -> AudioFeatures:
-    """Features of mono audio at FEATURE_SR; frame k is centred at k / 24 s."""
+def load_for_beats(path: Path) -> np.ndarray:
+    y, _ = librosa.load(str(path), sr=BEAT_SR, mono=True)
+    return y
+
+
+def compute_features(y: np.ndarray, extra_sets: tuple[str, ...] = (), fps: float = FPS,
+                     beats: Beats | None = None) -> AudioFeatures:
+    """Features of mono audio at ``feature_rate(fps)``; frame k is centred at k / fps s.
+
+    ``beats``: from ``track_beats`` on full-resolution audio (``load_for_beats``); when absent
+    they are tracked on ``y`` itself, upsampled (fine for tests, less exact for real music).
+    """
+    sr = feature_rate(fps)
     if len(y) < HOP:
         raise ValueError("audio shorter than one feature frame")
     n_fft = 2048
-    mfcc = librosa.feature.mfcc(y=y, sr=FEATURE_SR, n_mfcc=13, n_fft=n_fft, hop_length=HOP)
+    mfcc = librosa.feature.mfcc(y=y, sr=sr, n_mfcc=13, n_fft=n_fft, hop_length=HOP)
     width = min(9, mfcc.shape[1] - (1 - mfcc.shape[1] % 2))
     if width >= 3:
         delta = librosa.feature.delta(mfcc, width=width)
         delta2 = librosa.feature.delta(mfcc, order=2, width=width)
     else:
         delta = delta2 = np.zeros_like(mfcc)
-    onset = librosa.onset.onset_strength(y=y, sr=FEATURE_SR, hop_length=HOP)
-    tempo, beat_frames = librosa.beat.beat_track(onset_envelope=onset, sr=FEATURE_SR, hop_length=HOP, units="frames")
-    chroma = librosa.feature.chroma_stft(y=y, sr=FEATURE_SR, n_fft=n_fft, hop_length=HOP)
+    onset = librosa.onset.onset_strength(y=y, sr=sr, hop_length=HOP)
+    chroma = librosa.feature.chroma_stft(y=y, sr=sr, n_fft=n_fft, hop_length=HOP)
     frames = mfcc.shape[1]
-    beat = np.zeros(frames, np.int8)
-    beat[beat_frames[beat_frames < frames]] = 1
+    beats = beats if beats is not None else track_beats(y, sr)
+    beat = beat_flags(beats.times, frames, fps)
     extra = {}
     if "mel80" in extra_sets:  # Transflower-style: 80-band log-mel at the motion rate
-        mel = librosa.feature.melspectrogram(y=y, sr=FEATURE_SR, n_fft=n_fft, hop_length=HOP, n_mels=80)
+        mel = librosa.feature.melspectrogram(y=y, sr=sr, n_fft=n_fft, hop_length=HOP, n_mels=80)
         extra["mel80"] = librosa.power_to_db(mel).T[:frames]
     if "beat_mfcc40" in extra_sets:  # DanceNet3D-style: per-beat MFCC-40 + chroma, held over each beat
-        mfcc40 = librosa.feature.mfcc(y=y, sr=FEATURE_SR, n_mfcc=40, n_fft=n_fft, hop_length=HOP)
+        mfcc40 = librosa.feature.mfcc(y=y, sr=sr, n_mfcc=40, n_fft=n_fft, hop_length=HOP)
+        beat_frames = np.unique(np.clip(np.rint(beats.times * fps).astype(int), 0, frames))
         bounds = librosa.util.fix_frames(beat_frames, x_min=0, x_max=frames)
         synced = librosa.util.sync(np.vstack([mfcc40, chroma]), bounds, aggregate=np.mean)
         per_frame = np.zeros((frames, synced.shape[0]))
@@ -137,13 +161,15 @@ def compute_features(y: np.ndarray, extra_sets: tuple[str, ...] = ()) -> AudioFe
             per_frame[a:b] = synced[:, i]
         extra["beat_mfcc40"] = per_frame
     return AudioFeatures(
-        frames=frames,
+        frames=frames, fps=float(fps),
         mfcc=np.vstack([mfcc, delta, delta2]).T.astype(np.float32),
         chroma=chroma.T.astype(np.float32),
         onset=onset[:frames].astype(np.float32),
         beat=beat,
-        beat_times=(beat_frames / FPS).astype(np.float64),
-        tempo=float(np.atleast_1d(tempo)[0]),
+        beat_times=np.asarray(beats.times, np.float64),
+        downbeat_times=np.asarray(beats.downbeats, np.float64),
+        beats_per_bar=int(beats.beats_per_bar),
+        tempo=float(beats.tempo),
         extra={k: v.astype(np.float32) for k, v in extra.items()},
     )
 
@@ -157,6 +183,7 @@ class AudioJob:
     out_features: Path
     loudness: LoudnessOptions
     extra_sets: tuple[str, ...]
+    fps: float
     params: dict
     inputs: dict
     fingerprint: str
@@ -166,10 +193,15 @@ def audio_segment(job: AudioJob) -> dict:
     from pipeline.music.featurefile import features_table, write_features
 
     loudness = normalise_loudness(job.wav, job.out_wav, job.loudness)
-    f = compute_features(load_for_features(job.out_wav), tuple(job.extra_sets))
-    meta = {"segment_id": job.out_features.stem, "fps": FPS, "tempo": f.tempo, "loudness": loudness.as_dict(),
+    beats = track_beats(load_for_beats(job.out_wav), BEAT_SR)
+    f = compute_features(load_for_features(job.out_wav, job.fps), tuple(job.extra_sets), job.fps, beats)
+    meta = {"segment_id": job.out_features.stem, "fps": job.fps, "tempo": f.tempo, "loudness": loudness.as_dict(),
             "beat_times": [round(t, 6) for t in f.beat_times],
-            "alignment": "frame k is centred at k/24 s: audio resampled to 12288 Hz, hop 512, centred frames"}
-    table = features_table(f.frames, FPS, f.mfcc, f.chroma, f.onset, f.beat, f.extra)
+            "downbeat_times": [round(t, 6) for t in f.downbeat_times], "beats_per_bar": f.beats_per_bar,
+            "beat_tracker": f"librosa {librosa.__version__} at {BEAT_SR} Hz, hop {BEAT_HOP}, time-varying tempo",
+            "downbeat_method": DOWNBEAT_METHOD,
+            "alignment": f"frame k is centred at k/{job.fps:g} s: audio resampled to {feature_rate(job.fps)} Hz, "
+                         f"hop {HOP}, centred frames; beat flags at the frame nearest to each exact beat time"}
+    table = features_table(f.frames, job.fps, f.mfcc, f.chroma, f.onset, f.beat, f.extra)
     write_features(job.out_features, table, meta, fingerprint=job.fingerprint, params=job.params, inputs=job.inputs)
     return {"frames": f.frames, "tempo": f.tempo, "loudness": loudness.as_dict()}

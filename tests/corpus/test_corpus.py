@@ -93,7 +93,7 @@ def test_shards_round_trip_through_pyarrow_pandas_and_datasets(corpus) -> None:
         assert np.array_equal(np.array(record["motion"], np.float32), by_id[record["window_id"]].motion)
         assert np.array_equal(np.array(record["beat"], np.int8), by_id[record["window_id"]].beat)
     meta = pq.read_schema(files[0]).metadata[b"dance3d"]
-    assert b'"schema_version": 1' in meta and b'"fps": 24' in meta
+    assert b'"schema_version": 2' in meta and b'"fps": 24' in meta
 
 
 def test_loader_yields_every_window_once_per_epoch_across_two_workers(corpus) -> None:
