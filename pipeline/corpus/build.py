@@ -13,7 +13,7 @@ import numpy as np
 from pipeline.core.ids import video_id_of_segment
 from pipeline.core.paths import AUDIO_FEATURES, CLEAN, CORPUS, METRICS, MOTION24, RAW, SEGMENTS, TRACKS
 from pipeline.core.storage import atomic_path, item_files, read_meta, write_json, write_parquet
-from pipeline.corpus.card import channel_stats, durations_csv, histogram_png, render_card
+from pipeline.corpus.card import alignment_png, channel_stats, durations_csv, histogram_png, render_card
 from pipeline.corpus.windows import FPS, SCHEMA_VERSION, Window, split_of, window_starts, windows_table
 from pipeline.ingest.catalog import read_index, read_ledger
 from pipeline.motion.motionfile import clip_frame_counts, read_motion
@@ -161,6 +161,12 @@ def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, para
     alignment = alignment_summary(windows, fps)
     (root / CORPUS).mkdir(parents=True, exist_ok=True)
     histogram_png(root / CORPUS / "durations.png", series)
+    if windows:  # the window whose beat-align score is the median: a typical one
+        scores = [w.meta["beat_align_score"] for w in windows]
+        typical = windows[int(np.argsort(np.nan_to_num(scores, nan=-1))[len(windows) // 2])]
+        alignment_png(root / CORPUS / "alignment.png", typical.motion, typical.meta["beat_frames"],
+                      typical.meta["motion_beat_frames"], fps,
+                      f"{typical.meta['window_id']}: beat-align score {typical.meta['beat_align_score']:.2f}")
     with atomic_path(root / CORPUS / "card.md") as tmp:
         tmp.write_text(render_card(stats, ledger, card_params, totals, alignment))
     durations_csv(root / METRICS / "durations.csv", {"videos": series["source videos"],

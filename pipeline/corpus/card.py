@@ -71,6 +71,31 @@ def histogram_png(path: Path, series: dict[str, list[float]]) -> None:
     plt.close(fig)
 
 
+def alignment_png(path: Path, motion: np.ndarray, beat_frames: list[int], motion_beat_frames: list[int],
+                  fps: float, title: str) -> None:
+    """One window at a glance: mean joint speed over time, music beats (lines) and motion beats (dots)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    speed = np.linalg.norm(np.diff(np.asarray(motion, float), axis=0), axis=-1).mean(-1) * fps
+    t = np.arange(len(speed)) / fps
+    fig, ax = plt.subplots(figsize=(10, 2.6))
+    ax.plot(t, speed, color="#4477aa", lw=1.2, label="mean joint speed (m/s)")
+    for k, f in enumerate(beat_frames):
+        ax.axvline(f / fps, color="#cc6677", lw=0.8, alpha=0.8, label="music beat" if k == 0 else None)
+    mb = [f for f in motion_beat_frames if f < len(speed)]
+    ax.plot(np.asarray(mb) / fps, speed[mb], "o", color="#117733", ms=4, label="motion beat")
+    ax.set_xlabel("seconds into the window")
+    ax.set_title(title, fontsize=9)
+    ax.legend(loc="upper right", fontsize=7, ncol=3)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=90, metadata={"Software": None})
+    plt.close(fig)
+
+
 def durations_csv(path: Path, series: dict[str, list[float]], bin_seconds: float = 5.0) -> None:
     """Histogram counts per 5 s bin, one column per series, for `dvc plots`."""
     top = max([max(v) for v in series.values() if v] or [bin_seconds])
@@ -154,6 +179,8 @@ resampled with a cubic spline. Audio was loudness-normalised to EBU R128 before 
 ## Motion–music alignment
 
 {_alignment_text(alignment)}
+
+![one window: speed, music beats, motion beats](alignment.png)
 
 ## Statistics
 
