@@ -18,7 +18,10 @@ endif
 ifneq ($(wildcard ../shared/mocap),)
 DANCE3D_MOCAP ?= $(abspath ../shared/mocap)
 endif
-export DANCE3D_MEDIA DANCE3D_MODELS DANCE3D_MOCAP
+ifneq ($(wildcard ../shared/pose2d_eval),)
+DANCE3D_POSE2D_EVAL ?= $(abspath ../shared/pose2d_eval)
+endif
+export DANCE3D_MEDIA DANCE3D_MODELS DANCE3D_MOCAP DANCE3D_POSE2D_EVAL
 
 .PHONY: setup lock demo models test test-fast browser clean-demo
 

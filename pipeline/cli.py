@@ -31,6 +31,8 @@ examples:
   dance3d manifests check     validate manifests: every problem as file:line: reason
   dance3d render data/motion24/musepose_dance_000.parquet musepose_dance_000_1_0 clip.mp4
                               draw a 3D clip (front and side views) with its music
+  dance3d eval pose2d --annotations person_keypoints.json --images images/
+                              COCO keypoint AP, detection recall, PCK of the configured 2D models
   dance3d eval beats --audio song.ogg --beats song.beats
                               score the beat tracker against your annotations (mir_eval)
   dance3d models fetch        download, convert and verify the default detector and pose model
@@ -88,9 +90,23 @@ def _parser() -> argparse.ArgumentParser:
     sample.add_argument("--corpus", type=Path, default=Path("data/corpus"), help="where the seed window comes from")
     sample.add_argument("--seed-frames", type=int, default=24, help="frames of the seed pose (default 24)")
     sample.add_argument("--temperature", type=float, default=0.0, help="0: most likely bins; > 0: sample")
-    evaluate = sub.add_parser("eval", help="measure quality on data you bring (beats)",
+    evaluate = sub.add_parser("eval", help="measure quality on data you bring (pose2d, beats)",
                               description="Quality measures against your own annotated data.")
     evaluate_sub = evaluate.add_subparsers(dest="what", required=True, metavar="WHAT")
+    pose2d = evaluate_sub.add_parser(
+        "pose2d", help="the detector and pose model on COCO-style annotated images (pycocotools)",
+        description="Run the pose2d stage's detector and top-down pose model (params.yaml's pose2d section, "
+                    "or the options below) on every image of a COCO keypoint annotation file and report COCO "
+                    "keypoint AP/AR (pycocotools), detection recall and false positives per image at IoU 0.5, "
+                    "PCK@0.2 of the torso and per-joint errors, overall and per 'source' and 'eval_tier' field "
+                    "of the images. --gt-boxes scores the pose model alone on the annotated boxes.")
+    pose2d.add_argument("--annotations", type=Path, required=True, help="COCO keypoint JSON")
+    pose2d.add_argument("--images", type=Path, required=True, help="folder holding the images' file_name")
+    pose2d.add_argument("--gt-boxes", action="store_true", help="pose the annotated boxes (no detector)")
+    pose2d.add_argument("--detector", default=None, help="registry name (default: params.yaml)")
+    pose2d.add_argument("--pose-model", default=None, help="registry name (default: params.yaml)")
+    pose2d.add_argument("--det-score", type=float, default=None, help="detector threshold (default: params.yaml)")
+    pose2d.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
     beats = evaluate_sub.add_parser(
         "beats", help="the beat tracker against beat annotations (mir_eval)",
         description="Track beats in an audio file and score them against human annotations with mir_eval "
@@ -124,13 +140,36 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _eval(args: argparse.Namespace) -> int:
+def _eval_pose2d(root: Path, args: argparse.Namespace) -> dict:
+    from pipeline.core.params import load_params, stage_params
+    from pipeline.pose.evaluate import evaluate_pose2d
+    from pipeline.pose.pose2d import load_pose_models, model_files
+
+    params = stage_params(load_params(root / "params.yaml"), "pose2d")
+    for key, value in (("detector", args.detector), ("pose_model", args.pose_model), ("det_score", args.det_score)):
+        if value is not None:
+            params[key] = value
+    files, hashes = model_files(root, params)
+    models = load_pose_models(files)
+    describe = {"detector": params.get("detector", "rtmdet-nano-person"),
+                "pose_model": params.get("pose_model", "movenet-lightning"), "det_score": files.det_score,
+                "crop_padding": files.crop_padding, "model_sha256": hashes}
+    return evaluate_pose2d(args.annotations, args.images, models.detector, models.pose, gt_boxes=args.gt_boxes,
+                           describe=describe)
+
+
+def _eval(root: Path, args: argparse.Namespace) -> int:
     import json
 
-    from pipeline.music.evaluate import evaluate_beats, format_table
-
     try:
-        result = evaluate_beats(args.audio, args.beats)
+        if args.what == "pose2d":
+            from pipeline.pose.evaluate import format_table
+
+            result = _eval_pose2d(root, args)
+        else:
+            from pipeline.music.evaluate import evaluate_beats, format_table
+
+            result = evaluate_beats(args.audio, args.beats)
     except Dance3dError as exc:
         print(f"dance3d: {exc}", file=sys.stderr)
         return 2
@@ -177,7 +216,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "render":
         return _render(root, args)
     if args.command == "eval":
-        return _eval(args)
+        return _eval(root, args)
     if args.command == "models" and args.action == "fetch":
         return _fetch_models(root, args)
     if args.command == "models":

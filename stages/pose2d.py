@@ -15,26 +15,14 @@ from pipeline.core.itemstage import WorkItem, run_item_stage
 from pipeline.core.params import load_params, stage_params
 from pipeline.core.paths import POSE2D, SEGMENTS
 from pipeline.core.stage import run_stage, setup_logging
-from pipeline.core.storage import code_fingerprint, fingerprint, sha256_file
+from pipeline.core.storage import code_fingerprint, fingerprint
 from pipeline.ingest.catalog import read_index
-from pipeline.pose.models.registry import get_spec, resolve_model
-from pipeline.pose.pose2d import ModelFiles, Pose2dJob, Pose2dOptions, load_pose_models, pose_segment
+from pipeline.pose.pose2d import Pose2dJob, Pose2dOptions, load_pose_models, model_files, pose_segment
 from pipeline.pose.pose2dfile import SCHEMA_VERSION, SegmentInfo
 
 log = logging.getLogger("dance3d.pose2d")
 CODE = code_fingerprint(pipeline.pose.pose2d, pipeline.pose.pose2dfile, pipeline.pose.models.detector,
                         pipeline.pose.models.pose, pipeline.ingest.media)
-
-
-def model_files(root: Path, params: dict) -> tuple[ModelFiles, dict[str, str]]:
-    """Resolve both models in the main process, so a missing one is one clear error up front."""
-    det = get_spec(params.get("detector", "rtmdet-nano-person"))
-    pose = get_spec(params.get("pose_model", "movenet-lightning"))
-    det_path, pose_path = resolve_model(det.name, root), resolve_model(pose.name, root)
-    files = ModelFiles(str(det_path), det.input_size, str(pose_path), pose.kind, pose.input_size,
-                       int(params.get("threads", 1)), float(params.get("det_score", 0.5)),
-                       float(params.get("crop_padding", 1.25)))
-    return files, {det.name: sha256_file(det_path), pose.name: sha256_file(pose_path)}
 
 
 def run(root: Path) -> None:

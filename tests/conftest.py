@@ -132,3 +132,9 @@ class Mirror:
         self.httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
         self.url = f"http://127.0.0.1:{self.httpd.server_address[1]}"
         threading.Thread(target=self.httpd.serve_forever, daemon=True).start()
+
+
+@pytest.fixture(scope="session")
+def pose2d_eval_dir() -> Path:
+    """COCO-style annotated images (annotations.json + images/) for 2D accuracy."""
+    return _asset_dir("DANCE3D_POSE2D_EVAL", "annotations.json")

@@ -175,6 +175,20 @@ class ModelFiles:
     crop_padding: float = 1.25
 
 
+def model_files(root: Path, params: dict) -> tuple[ModelFiles, dict[str, str]]:
+    """Resolve both models in the main process, so a missing one is one clear error up front."""
+    from pipeline.core.storage import sha256_file
+    from pipeline.pose.models.registry import get_spec, resolve_model
+
+    det = get_spec(params.get("detector", "rtmdet-nano-person"))
+    pose = get_spec(params.get("pose_model", "movenet-lightning"))
+    det_path, pose_path = resolve_model(det.name, root), resolve_model(pose.name, root)
+    files = ModelFiles(str(det_path), det.input_size, str(pose_path), pose.kind, pose.input_size,
+                       int(params.get("threads", 1)), float(params.get("det_score", 0.5)),
+                       float(params.get("crop_padding", 1.25)))
+    return files, {det.name: sha256_file(det_path), pose.name: sha256_file(pose_path)}
+
+
 @dataclass(frozen=True)
 class PoseModels:
     detector: RTMDetDetector
