@@ -19,7 +19,7 @@ import numpy as np
 
 from pipeline.ingest.media import iter_frames
 from pipeline.pose.models.detector import Detections, Letterbox, RTMDetDetector, largest
-from pipeline.pose.models.pose import MoveNetPose, RTMPose
+from pipeline.pose.models.pose import MoveNetPose, RTMPose, TinyPose
 from pipeline.pose.models.session import create_session
 from pipeline.pose.pose2dfile import Poses, SegmentInfo, write_pose2d
 
@@ -168,7 +168,7 @@ class ModelFiles:
     detector: str
     detector_input: tuple[int, int]
     pose: str
-    pose_kind: str  # movenet | rtmpose
+    pose_kind: str  # movenet | rtmpose | tinypose
     pose_input: tuple[int, int]
     threads: int = 1
     det_score: float = 0.5
@@ -192,7 +192,7 @@ def model_files(root: Path, params: dict) -> tuple[ModelFiles, dict[str, str]]:
 @dataclass(frozen=True)
 class PoseModels:
     detector: RTMDetDetector
-    pose: MoveNetPose | RTMPose
+    pose: MoveNetPose | RTMPose | TinyPose
 
 
 def load_pose_models(files: ModelFiles) -> PoseModels:
@@ -204,6 +204,8 @@ def load_pose_models(files: ModelFiles) -> PoseModels:
         return PoseModels(detector, MoveNetPose(session, files.pose_input, files.crop_padding))
     if files.pose_kind == "rtmpose":
         return PoseModels(detector, RTMPose(session, files.pose_input, files.crop_padding))
+    if files.pose_kind == "tinypose":
+        return PoseModels(detector, TinyPose(session, files.pose_input, files.crop_padding))
     raise ValueError(f"pose model kind {files.pose_kind!r} is not a 2D pose model")
 
 

@@ -158,3 +158,29 @@ def test_download_with_a_wrong_checksum_is_refused(tmp_path, monkeypatch) -> Non
 def test_models_are_found_through_the_environment(models_dir: Path, tmp_path: Path, monkeypatch) -> None:
     monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
     assert registry.resolve_model("rtmdet-nano-person", tmp_path) == models_dir / "rtmdet_nano_person_end2end.onnx"
+
+
+def test_heatmap_peaks_are_refined_a_quarter_pixel_toward_the_larger_neighbour() -> None:
+    from pipeline.pose.models.pose import decode_heatmaps
+
+    heat = np.zeros((1, 2, 64, 48), np.float32)
+    heat[0, 0, 20, 10], heat[0, 0, 20, 11] = 0.9, 0.5   # right neighbour larger: x + 0.25
+    heat[0, 1, 5, 7], heat[0, 1, 4, 7] = 0.7, 0.2       # upper neighbour larger: y - 0.25
+    out = decode_heatmaps(heat, stride=4)
+    assert out[0, 0].tolist() == pytest.approx([10.25 * 4 + 1.5, 20 * 4 + 1.5, 0.9])
+    assert out[0, 1].tolist() == pytest.approx([7 * 4 + 1.5, 4.75 * 4 + 1.5, 0.7])
+
+
+def test_tinypose_beats_movenet_on_the_annotated_images(tmp_path, models_dir: Path, pose2d_eval_dir: Path,
+                                                          monkeypatch) -> None:
+    from pipeline.cli import main
+    from tests.conftest import PROJECT
+
+    monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
+    ap = {}
+    files = ["--annotations", str(pose2d_eval_dir / "annotations.json"), "--images", str(pose2d_eval_dir / "images")]
+    for model in ("movenet-lightning", "tinypose"):
+        out = tmp_path / f"{model}.json"
+        assert main(["--root", str(PROJECT), "eval", "pose2d", *files, "--pose-model", model, "--out", str(out)]) == 0
+        ap[model] = json.loads(out.read_text())["scores"]["all"]["AP"]
+    assert ap["tinypose"] > ap["movenet-lightning"] + 0.05  # measured: 0.470 against 0.352

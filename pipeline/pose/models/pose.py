@@ -109,3 +109,55 @@ class RTMPose:
         for i, m in enumerate(matrices):
             out[i, :, :2] = to_image(decoded[i, :, :2], m)
         return out
+
+
+def decode_heatmaps(heatmaps: np.ndarray, stride: float) -> np.ndarray:
+    """(N, K, H, W) heatmaps -> (N, K, 3) crop-pixel x, y and peak value.
+
+    The peak is moved a quarter of a heatmap pixel toward its larger neighbour (the classic
+    sub-pixel refinement of SimpleBaseline / PaddleDetection), then mapped to the centre of
+    its ``stride``-pixel cell in the crop.
+    """
+    n, k, h, w = heatmaps.shape
+    flat = heatmaps.reshape(n, k, -1)
+    idx = flat.argmax(-1)
+    score = np.take_along_axis(flat, idx[..., None], -1)[..., 0]
+    x, y = (idx % w).astype(np.float64), (idx // w).astype(np.float64)
+    xi, yi = x.astype(int), y.astype(int)
+    b, j = np.meshgrid(np.arange(n), np.arange(k), indexing="ij")
+    right = heatmaps[b, j, yi, np.clip(xi + 1, 0, w - 1)]
+    left = heatmaps[b, j, yi, np.clip(xi - 1, 0, w - 1)]
+    down = heatmaps[b, j, np.clip(yi + 1, 0, h - 1), xi]
+    up = heatmaps[b, j, np.clip(yi - 1, 0, h - 1), xi]
+    inside_x, inside_y = (xi > 0) & (xi < w - 1), (yi > 0) & (yi < h - 1)
+    x += np.where(inside_x, 0.25 * np.sign(right - left), 0.0)
+    y += np.where(inside_y, 0.25 * np.sign(down - up), 0.0)
+    return np.stack([x * stride + (stride - 1) / 2, y * stride + (stride - 1) / 2, score], -1).astype(np.float32)
+
+
+IMAGENET_MEAN = np.array([0.485, 0.456, 0.406], np.float32)
+IMAGENET_STD = np.array([0.229, 0.224, 0.225], np.float32)
+
+
+class TinyPose:
+    """PP-TinyPose heatmap exports (NCHW RGB, ImageNet-normalised, 256x192, batch 1): one crop per call."""
+
+    def __init__(self, session, input_size: tuple[int, int] = (192, 256), padding: float = 1.25):
+        self.session = session
+        self.size = input_size
+        self.padding = padding
+        self.input_name = session.get_inputs()[0].name
+        self.heatmap_name = next(o.name for o in session.get_outputs() if len(o.shape) == 4)
+
+    def estimate(self, image: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+        out = np.zeros((len(boxes), 17, 3), np.float32)
+        w, h = self.size
+        for i, box in enumerate(boxes):
+            m = crop_transform(box, w, h, self.padding)
+            crop = cv2.cvtColor(warp(image, m, w, h), cv2.COLOR_BGR2RGB).astype(np.float32) / 255.0
+            tensor = ((crop - IMAGENET_MEAN) / IMAGENET_STD).transpose(2, 0, 1)[None]
+            (heatmaps,) = self.session.run([self.heatmap_name], {self.input_name: np.ascontiguousarray(tensor)})
+            decoded = decode_heatmaps(heatmaps, stride=w / heatmaps.shape[-1])[0]
+            out[i, :, :2] = to_image(decoded[:, :2], m)
+            out[i, :, 2] = decoded[:, 2]
+        return out

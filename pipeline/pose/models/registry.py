@@ -23,7 +23,7 @@ log = logging.getLogger(__name__)
 class ModelSpec:
     name: str
     file: str
-    kind: str                   # rtmdet | movenet | rtmpose | lifter
+    kind: str                   # rtmdet | movenet | rtmpose | tinypose | lifter
     input_size: tuple[int, int]  # (width, height) the model expects
     sha256: str | None          # None: not pinned, so never downloaded automatically
     url: str | None = None      # where users get it by hand (fetchable models have routes in fetch.py)
@@ -44,6 +44,12 @@ REGISTRY: dict[str, ModelSpec] = {
             "c7ce583bf620af48a3d0d14226691d3ebd2783165bf525b58d4dc33132aed735",
             note="MoveNet SinglePose Lightning v4 (Google, Apache-2.0) converted from the TF-Hub int8 "
                  "TFLite with tf2onnx --dequantize; there is no official ONNX download",
+        ),
+        ModelSpec(
+            "tinypose", "tinypose_256x192.onnx", "tinypose", (192, 256),
+            "d6b08c1ada0a807d27b260d3a19cfade722e7253cc1bfe59d6bfb98932061a1f",
+            note="PP-TinyPose 256x192 (PaddleDetection, Apache-2.0), COCO-17 heatmaps, converted from an OpenVINO "
+                 "IR export (MODELS.md 4c); no official ONNX download",
         ),
         ModelSpec(
             "rtmpose-m", "rtmpose-m_simcc-body7_256x192.onnx", "rtmpose", (192, 256), None,
