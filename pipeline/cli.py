@@ -103,7 +103,8 @@ def _parser() -> argparse.ArgumentParser:
     pose2d.add_argument("--annotations", type=Path, required=True, help="COCO keypoint JSON")
     pose2d.add_argument("--images", type=Path, required=True, help="folder holding the images' file_name")
     pose2d.add_argument("--gt-boxes", action="store_true", help="pose the annotated boxes (no detector)")
-    pose2d.add_argument("--detector", default=None, help="registry name (default: params.yaml)")
+    pose2d.add_argument("--detector", default=None,
+                        help="registry name, or several joined by '+' to fuse them (default: params.yaml)")
     pose2d.add_argument("--pose-model", default=None, help="registry name (default: params.yaml)")
     pose2d.add_argument("--det-score", type=float, default=None, help="detector threshold (default: params.yaml)")
     pose2d.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")

@@ -18,7 +18,7 @@ from typing import Any, Callable, Iterator
 import numpy as np
 
 from pipeline.ingest.media import iter_frames
-from pipeline.pose.models.detector import Detections, Letterbox, RTMDetDetector, largest
+from pipeline.pose.models.detector import Detections, FusedDetector, Letterbox, PicoDetDetector, RTMDetDetector, largest
 from pipeline.pose.models.pose import MoveNetPose, RTMPose, TinyPose
 from pipeline.pose.models.session import create_session
 from pipeline.pose.pose2dfile import Poses, SegmentInfo, write_pose2d
@@ -165,8 +165,7 @@ def collect_poses(frames: Iterator[FramePoses], progress: Callable[[], None] | N
 class ModelFiles:
     """What a worker needs to build its sessions (resolved once, in the stage's process)."""
 
-    detector: str
-    detector_input: tuple[int, int]
+    detectors: tuple[tuple[str, str, tuple[int, int]], ...]  # (file, kind, input size): several are fused
     pose: str
     pose_kind: str  # movenet | rtmpose | tinypose
     pose_input: tuple[int, int]
@@ -180,25 +179,40 @@ def model_files(root: Path, params: dict) -> tuple[ModelFiles, dict[str, str]]:
     from pipeline.core.storage import sha256_file
     from pipeline.pose.models.registry import get_spec, resolve_model
 
-    det = get_spec(params.get("detector", "rtmdet-nano-person"))
+    dets = [get_spec(name) for name in detector_names(params.get("detector", "rtmdet-nano-person"))]
     pose = get_spec(params.get("pose_model", "movenet-lightning"))
-    det_path, pose_path = resolve_model(det.name, root), resolve_model(pose.name, root)
-    files = ModelFiles(str(det_path), det.input_size, str(pose_path), pose.kind, pose.input_size,
-                       int(params.get("threads", 1)), float(params.get("det_score", 0.5)),
+    det_paths, pose_path = [resolve_model(d.name, root) for d in dets], resolve_model(pose.name, root)
+    files = ModelFiles(tuple((str(path), d.kind, d.input_size) for d, path in zip(dets, det_paths)), str(pose_path),
+                       pose.kind, pose.input_size, int(params.get("threads", 1)), float(params.get("det_score", 0.5)),
                        float(params.get("crop_padding", 1.25)))
-    return files, {det.name: sha256_file(det_path), pose.name: sha256_file(pose_path)}
+    hashes = {d.name: sha256_file(path) for d, path in zip(dets, det_paths)}
+    return files, {**hashes, pose.name: sha256_file(pose_path)}
+
+
+def detector_names(value: str | list[str]) -> list[str]:
+    """``pose2d.detector``: one registry name, or several (a list, or joined by '+') to fuse."""
+    names = value if isinstance(value, list) else str(value).split("+")
+    return [n.strip() for n in names if n.strip()]
 
 
 @dataclass(frozen=True)
 class PoseModels:
-    detector: RTMDetDetector
+    detector: RTMDetDetector | PicoDetDetector | FusedDetector
     pose: MoveNetPose | RTMPose | TinyPose
 
 
 def load_pose_models(files: ModelFiles) -> PoseModels:
     """One worker's sessions, built once and reused for every segment it gets."""
-    detector = RTMDetDetector(create_session(Path(files.detector), files.threads), files.detector_input,
-                              files.det_score)
+    detectors = []
+    for path, kind, size in files.detectors:
+        session = create_session(Path(path), files.threads)
+        if kind == "rtmdet":
+            detectors.append(RTMDetDetector(session, size, files.det_score))
+        elif kind == "picodet":
+            detectors.append(PicoDetDetector(session, size, files.det_score))
+        else:
+            raise ValueError(f"model kind {kind!r} is not a person detector")
+    detector = detectors[0] if len(detectors) == 1 else FusedDetector(detectors)
     session = create_session(Path(files.pose), files.threads)
     if files.pose_kind == "movenet":
         return PoseModels(detector, MoveNetPose(session, files.pose_input, files.crop_padding))

@@ -184,3 +184,16 @@ def test_tinypose_beats_movenet_on_the_annotated_images(tmp_path, models_dir: Pa
         assert main(["--root", str(PROJECT), "eval", "pose2d", *files, "--pose-model", model, "--out", str(out)]) == 0
         ap[model] = json.loads(out.read_text())["scores"]["all"]["AP"]
     assert ap["tinypose"] > ap["movenet-lightning"] + 0.05  # measured: 0.470 against 0.352
+
+
+def test_picodet_and_the_fused_detector_find_the_skier_once(models_dir: Path, media_dir: Path) -> None:
+    from pipeline.pose.models.detector import FusedDetector, PicoDetDetector
+
+    image = cv2.imread(str(media_dir / "images/human-pose.jpg"))  # one skier, 218 x 346
+    pico = PicoDetDetector(create_session(models_dir / "picodet_s_320_pedestrian.onnx"), score_threshold=0.3)
+    rtm = RTMDetDetector(create_session(models_dir / "rtmdet_nano_person_end2end.onnx"), score_threshold=0.3)
+    for found in (pico.detect(image), FusedDetector([rtm, pico]).detect(image)):
+        assert len(found) == 1  # NMS merges the two detectors' boxes of the same person
+        x1, y1, x2, y2 = found.boxes[0]
+        assert x2 - x1 > 150 and y2 - y1 > 250 and found.scores[0] >= 0.5
+    assert len(FusedDetector([rtm, pico]).detect(cv2.imread(str(media_dir / "images/no_person_park.jpg")))) == 0

@@ -10,6 +10,7 @@ import pytest
 
 from pipeline.core.errors import ModelMissingError
 from pipeline.core.failures import read_failures
+from pipeline.core.storage import read_meta
 from pipeline.ingest.media import probe
 from pipeline.pose.models.detector import RTMDetDetector
 from pipeline.pose.models.pose import COCO17, MoveNetPose
@@ -138,3 +139,17 @@ def test_missing_model_stops_the_stage_with_one_line(project: Path, tmp_path: Pa
     assert "\n" not in message
     assert message.startswith("model movenet-lightning: movenet_singlepose_lightning_4_dequant.onnx not found; "
                               f"put it in {only_detector} or {project / 'models'}")
+
+
+def test_two_detectors_can_be_fused_in_the_stage(project: Path, media_dir: Path, models_dir: Path,
+                                                  monkeypatch) -> None:
+    monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
+    write_sources(project, [("solo", media_dir / "videos/dance_solo_384x496_30fps.mp4")])
+    (project / "annotations/segments.csv").write_text("video_id,start,end\nsolo,0,2\n")
+    set_params(project, "pose2d", detector="rtmdet-nano-person+picodet-s-pedestrian", pose_model="tinypose")
+    run_stages(project, "download", "trim", "pose2d")
+    pose2d = read_pose2d(project / "data/pose2d/solo_000.parquet")
+    assert len(set(pose2d.poses.frame)) >= 0.95 * 60
+    assert (pose2d.poses.person == 0).sum() == len(set(pose2d.poses.frame))  # one dancer: one box per frame
+    hashes = read_meta(project / "data/pose2d/solo_000.parquet")["inputs"]
+    assert {"rtmdet-nano-person", "picodet-s-pedestrian", "tinypose"} <= set(hashes)

@@ -78,3 +78,75 @@ class RTMDetDetector:
 
     def detect(self, image: np.ndarray) -> Detections:
         return self.infer(self.preprocess(image))
+
+
+IMAGENET_MEAN_RGB = np.array([0.485, 0.456, 0.406], np.float32)
+IMAGENET_STD_RGB = np.array([0.229, 0.224, 0.225], np.float32)
+
+
+def nms(boxes: np.ndarray, scores: np.ndarray, iou: float) -> np.ndarray:
+    """Indices kept by greedy non-maximum suppression (OpenCV's), highest score first."""
+    if not len(boxes):
+        return np.zeros(0, int)
+    xywh = [[float(x1), float(y1), float(x2 - x1), float(y2 - y1)] for x1, y1, x2, y2 in boxes]
+    keep = cv2.dnn.NMSBoxes(xywh, [float(s) for s in scores], 0.0, iou)
+    keep = np.asarray(keep, int).reshape(-1)
+    return keep[np.argsort(-scores[keep], kind="stable")]
+
+
+class PicoDetDetector:
+    """PicoDet exports without NMS in the graph (plain resize, RGB, ImageNet-normalised, 320x320)."""
+
+    def __init__(self, session, input_size: tuple[int, int] = (320, 320), score_threshold: float = 0.5,
+                 nms_iou: float = 0.6):
+        self.session = session
+        self.input_size = input_size
+        self.score_threshold = score_threshold
+        self.nms_iou = nms_iou
+        self.input_name = session.get_inputs()[0].name
+        shapes = {o.name: o.shape for o in session.get_outputs()}
+        self.boxes_name = next(n for n, s in shapes.items() if s[-1] == 4)
+        self.scores_name = next(n for n in shapes if n != self.boxes_name)
+
+    def preprocess(self, image: np.ndarray) -> tuple[np.ndarray, int, int]:
+        h, w = image.shape[:2]
+        width, height = self.input_size
+        rgb = cv2.cvtColor(cv2.resize(image, (width, height), interpolation=cv2.INTER_LINEAR), cv2.COLOR_BGR2RGB)
+        tensor = ((rgb.astype(np.float32) / 255.0 - IMAGENET_MEAN_RGB) / IMAGENET_STD_RGB).transpose(2, 0, 1)[None]
+        return np.ascontiguousarray(tensor), w, h
+
+    def detect(self, image: np.ndarray) -> Detections:
+        return self.infer(self.preprocess(image))
+
+    def infer(self, prepared: tuple[np.ndarray, int, int]) -> Detections:
+        tensor, w, h = prepared
+        width, height = self.input_size
+        boxes, scores = self.session.run([self.boxes_name, self.scores_name], {self.input_name: tensor})
+        boxes, scores = boxes.reshape(-1, 4), scores.reshape(-1)
+        good = scores >= self.score_threshold
+        boxes, scores = boxes[good] * np.array([w / width, h / height] * 2, np.float32), scores[good]
+        boxes[:, [0, 2]] = boxes[:, [0, 2]].clip(0, w)
+        boxes[:, [1, 3]] = boxes[:, [1, 3]].clip(0, h)
+        keep = nms(boxes, scores, self.nms_iou)
+        return Detections(boxes[keep].astype(np.float32), scores[keep].astype(np.float32))
+
+
+class FusedDetector:
+    """Several detectors on the same frame, their boxes merged by NMS: they miss different people."""
+
+    def __init__(self, detectors: list, nms_iou: float = 0.5):
+        self.detectors = detectors
+        self.nms_iou = nms_iou
+
+    def preprocess(self, image: np.ndarray) -> tuple:
+        return tuple(d.preprocess(image) for d in self.detectors)
+
+    def detect(self, image: np.ndarray) -> Detections:
+        return self.infer(self.preprocess(image))
+
+    def infer(self, prepared: tuple) -> Detections:
+        found = [d.infer(x) for d, x in zip(self.detectors, prepared)]
+        boxes = np.concatenate([f.boxes for f in found]).reshape(-1, 4)
+        scores = np.concatenate([f.scores for f in found])
+        keep = nms(boxes, scores, self.nms_iou)
+        return Detections(boxes[keep], scores[keep])

@@ -23,7 +23,7 @@ log = logging.getLogger(__name__)
 class ModelSpec:
     name: str
     file: str
-    kind: str                   # rtmdet | movenet | rtmpose | tinypose | lifter
+    kind: str                   # rtmdet | picodet | movenet | rtmpose | tinypose | lifter
     input_size: tuple[int, int]  # (width, height) the model expects
     sha256: str | None          # None: not pinned, so never downloaded automatically
     url: str | None = None      # where users get it by hand (fetchable models have routes in fetch.py)
@@ -38,6 +38,12 @@ REGISTRY: dict[str, ModelSpec] = {
             "rtmdet-nano-person", "rtmdet_nano_person_end2end.onnx", "rtmdet", (320, 320),
             "4720eda18a18402e7b76d85827d4bc60fba18111fc0b74b559e4d24da9ddc3d2",
             note="RTMDet-nano person detector (OpenMMLab, Apache-2.0), mmdeploy end2end export with NMS",
+        ),
+        ModelSpec(
+            "picodet-s-pedestrian", "picodet_s_320_pedestrian.onnx", "picodet", (320, 320),
+            "620ca936c542462aa647380e7ccf98709cb603e582e2e6ef522f3ca165159cc4",
+            note="PicoDet-S-LCNet pedestrian 320 (PaddleDetection, Apache-2.0), no NMS in the graph, converted from "
+                 "an OpenVINO IR export (MODELS.md 4c); no official ONNX download",
         ),
         ModelSpec(
             "movenet-lightning", "movenet_singlepose_lightning_4_dequant.onnx", "movenet", (192, 192),
