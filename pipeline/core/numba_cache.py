@@ -16,8 +16,10 @@ crashed item), so even a cache corrupted by something else cannot fail an item t
 
 from __future__ import annotations
 
+import atexit
 import fcntl
 import os
+import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -43,7 +45,9 @@ def _point_numba_at(folder: Path) -> None:
 
 
 def _fresh_dir() -> Path:
-    return Path(tempfile.mkdtemp(prefix="dance3d-numba-"))
+    folder = Path(tempfile.mkdtemp(prefix="dance3d-numba-"))
+    atexit.register(shutil.rmtree, folder, True)  # a private cache lives as long as its process
+    return folder
 
 
 def claim_slot() -> Path:
