@@ -89,13 +89,13 @@ def alignment_summary(windows: list[Window], fps: float, seed: int = 0) -> dict:
     matched = {"bas": [], "f1": []}
     shuffled = {"bas": [], "f1": []}
     for w, j in zip(windows, partners):
+        # Both from frame indices (not the windows' exact-time scores), so matched and shuffled
+        # music beats have the same precision and only the pairing differs.
         motion = np.asarray(w.meta["motion_beat_frames"], float) / fps
-        other = np.asarray(windows[j].meta["beat_frames"], float) / fps
-        own = np.asarray(w.meta["beat_frames"], float) / fps
-        matched["bas"].append(beat_align_score(own, motion))
-        matched["f1"].append(beat_f1(own, motion, fps))
-        shuffled["bas"].append(beat_align_score(other, motion))
-        shuffled["f1"].append(beat_f1(other, motion, fps))
+        for scores, music in ((matched, w.meta["beat_frames"]), (shuffled, windows[j].meta["beat_frames"])):
+            beats = np.asarray(music, float) / fps
+            scores["bas"].append(beat_align_score(beats, motion))
+            scores["f1"].append(beat_f1(beats, motion, fps))
 
     def mean(values: list[float]) -> float:
         good = [v for v in values if v == v]

@@ -18,7 +18,7 @@ from typing import Any, Callable, Iterator
 import numpy as np
 
 from pipeline.ingest.media import iter_frames
-from pipeline.pose.models.detector import Detections, FusedDetector, Letterbox, PicoDetDetector, RTMDetDetector, largest
+from pipeline.pose.models.detector import Detections, FusedDetector, PicoDetDetector, RTMDetDetector, largest
 from pipeline.pose.models.pose import MoveNetPose, RTMPose, TinyPose
 from pipeline.pose.models.session import create_session
 from pipeline.pose.pose2dfile import Poses, SegmentInfo, write_pose2d
@@ -106,7 +106,7 @@ def estimate_segment(path: Path, fps: float, detector, pose, opts: Pose2dOptions
     def decoded() -> Iterator[tuple]:
         for frame in iter_frames(path):
             number = int(round(frame.time * fps))
-            box: Letterbox | None = detector.preprocess(frame.image) if number % every == 0 else None
+            box: Any = detector.preprocess(frame.image) if number % every == 0 else None  # None: carry over
             yield number, frame.time, frame.image, box
 
     def detected(frames: Iterator[tuple]) -> Iterator[tuple]:
