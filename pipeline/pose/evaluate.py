@@ -26,6 +26,7 @@ import numpy as np
 
 from pipeline.core.errors import InputError
 from pipeline.pose.models.pose import COCO17
+from pipeline.pose.tracking import iou_matrix
 
 TORSO = (5, 12)  # left shoulder, right hip
 
@@ -36,19 +37,6 @@ class Prediction:
     box: np.ndarray        # x1, y1, x2, y2
     box_score: float
     keypoints: np.ndarray  # 17 x 3
-
-
-def _iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """IoU of boxes a (N x 4) and b (M x 4), x1 y1 x2 y2."""
-    if not len(a) or not len(b):
-        return np.zeros((len(a), len(b)))
-    x1 = np.maximum(a[:, None, 0], b[None, :, 0])
-    y1 = np.maximum(a[:, None, 1], b[None, :, 1])
-    x2 = np.minimum(a[:, None, 2], b[None, :, 2])
-    y2 = np.minimum(a[:, None, 3], b[None, :, 3])
-    inter = np.clip(x2 - x1, 0, None) * np.clip(y2 - y1, 0, None)
-    area = lambda r: (r[:, 2] - r[:, 0]) * (r[:, 3] - r[:, 1])  # noqa: E731
-    return inter / (area(a)[:, None] + area(b)[None, :] - inter + 1e-9)
 
 
 def _xyxy(bbox: list[float]) -> np.ndarray:
@@ -117,7 +105,7 @@ def matching(coco, predictions: list[Prediction], image_ids: list[int]) -> dict:
         anns = [a for a in coco.loadAnns(coco.getAnnIds(imgIds=image_id)) if not a.get("iscrowd")]
         preds = sorted([p for p in predictions if p.image_id == image_id], key=lambda p: -p.box_score)
         gt = np.array([_xyxy(a["bbox"]) for a in anns], np.float32).reshape(-1, 4)
-        iou = _iou(np.array([p.box for p in preds], np.float32).reshape(-1, 4), gt)
+        iou = iou_matrix(np.array([p.box for p in preds], np.float32).reshape(-1, 4), gt)
         taken = set()
         for i, p in enumerate(preds):  # greedy by score, as detection benchmarks match
             candidates = [j for j in np.argsort(-iou[i]) if iou[i, j] >= 0.5 and j not in taken] if len(gt) else []
