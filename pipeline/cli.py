@@ -105,8 +105,14 @@ def _parser() -> argparse.ArgumentParser:
     pose2d.add_argument("--gt-boxes", action="store_true", help="pose the annotated boxes (no detector)")
     pose2d.add_argument("--detector", default=None,
                         help="registry name, or several joined by '+' to fuse them (default: params.yaml)")
-    pose2d.add_argument("--pose-model", default=None, help="registry name (default: params.yaml)")
+    pose2d.add_argument("--pose-model", default=None,
+                        help="registry name, or body+feet models joined by '+' (default: params.yaml)")
     pose2d.add_argument("--det-score", type=float, default=None, help="detector threshold (default: params.yaml)")
+    pose2d.add_argument("--confirm-score", type=float, default=None,
+                        help="weaker boxes down to this count when the pose confirms them; 0: off "
+                             "(default: params.yaml)")
+    pose2d.add_argument("--dark-mean", type=float, default=None,
+                        help="brighten images darker than this mean pixel value; 0: never (default: params.yaml)")
     pose2d.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
     beats = evaluate_sub.add_parser(
         "beats", help="the beat tracker against beat annotations (mir_eval)",
@@ -124,7 +130,8 @@ def _parser() -> argparse.ArgumentParser:
     fetch = models_sub.add_parser(
         "fetch", help="download the default models from their sources, checksum and output verified",
         description="Download each model from its source (sha256 checked), convert it where the source is "
-                    "not ONNX (MoveNet: Google's TF-Hub TFLite, with tf2onnx in a throw-away virtual "
+                    "not ONNX (MoveNet: Google's TF-Hub TFLite; BlazePose: the TFLite in the pinned mediapipe "
+                    "wheel from PyPI, sha256 checked; both with tf2onnx in a throw-away virtual "
                     "environment; needs pip and a few minutes), and verify the result by its outputs on a "
                     "fixed test card. DANCE3D_DOWNLOAD_MIRROR=<base url> fetches https://host/path from "
                     "<base url>/host/path instead.")
@@ -144,10 +151,11 @@ def _parser() -> argparse.ArgumentParser:
 def _eval_pose2d(root: Path, args: argparse.Namespace) -> dict:
     from pipeline.core.params import load_params, stage_params
     from pipeline.pose.evaluate import evaluate_pose2d
-    from pipeline.pose.pose2d import load_pose_models, model_files
+    from pipeline.pose.pose2d import Pose2dOptions, load_pose_models, model_files
 
     params = stage_params(load_params(root / "params.yaml"), "pose2d")
-    for key, value in (("detector", args.detector), ("pose_model", args.pose_model), ("det_score", args.det_score)):
+    for key, value in (("detector", args.detector), ("pose_model", args.pose_model), ("det_score", args.det_score),
+                       ("confirm_score", args.confirm_score), ("dark_mean", args.dark_mean)):
         if value is not None:
             params[key] = value
     files, hashes = model_files(root, params)
@@ -155,8 +163,10 @@ def _eval_pose2d(root: Path, args: argparse.Namespace) -> dict:
     describe = {"detector": params.get("detector", "rtmdet-nano-person"),
                 "pose_model": params.get("pose_model", "movenet-lightning"), "det_score": files.det_score,
                 "crop_padding": files.crop_padding, "model_sha256": hashes}
+    opts = Pose2dOptions.from_params(params)
+    describe.update(confirm_score=opts.confirm_score, dark_mean=opts.dark_mean)
     return evaluate_pose2d(args.annotations, args.images, models.detector, models.pose, gt_boxes=args.gt_boxes,
-                           describe=describe)
+                           opts=opts, describe=describe)
 
 
 def _eval(root: Path, args: argparse.Namespace) -> int:
@@ -189,7 +199,10 @@ def _fetch_models(root: Path, args: argparse.Namespace) -> int:
     names = args.names
     if not names:
         pose2d = stage_params(load_params(root / "params.yaml"), "pose2d")
-        names = [pose2d.get("detector", "rtmdet-nano-person"), pose2d.get("pose_model", "movenet-lightning")]
+        from pipeline.pose.pose2d import DEFAULT_DETECTOR, DEFAULT_POSE_MODEL, model_names
+
+        names = model_names(pose2d.get("detector", DEFAULT_DETECTOR)) + model_names(
+            pose2d.get("pose_model", DEFAULT_POSE_MODEL))
     folder = args.to or root / "models"
     failed = 0
     for name in names:

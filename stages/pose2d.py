@@ -27,7 +27,7 @@ CODE = code_fingerprint(pipeline.pose.pose2d, pipeline.pose.pose2dfile, pipeline
 
 def run(root: Path) -> None:
     params = stage_params(load_params(root / "params.yaml"), "pose2d")
-    opts = Pose2dOptions(top_k=int(params.get("top_k", 5)), det_every=int(params.get("det_every", 1)))
+    opts = Pose2dOptions.from_params(params)
     files, model_hashes = model_files(root, params)
     items = []
     for seg in read_index(root / SEGMENTS).values():

@@ -2,7 +2,8 @@
 
 One row per clip frame: clip_id (``<segment_id>_<track_id>_<k>``), track_id, frame
 (contiguous within a clip), time (frame / fps, segment clock), box, keypoints (COCO-17
-x, y, score), interpolated (the frame was a gap filled by interpolation). Metadata: the
+x, y, score), feet and world (as in the pose2d table), interpolated (the frame was a gap
+filled by interpolation). Metadata: the
 segment, whether spans came from a manifest or a proposal, and how many clips were too
 short to keep.
 """
@@ -18,9 +19,9 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from pipeline.core.storage import column_array, fixed_list, read_meta, write_parquet
-from pipeline.pose.pose2dfile import KEYPOINTS, SegmentInfo
+from pipeline.pose.pose2dfile import FEET, KEYPOINTS, WORLD, SegmentInfo
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2  # 2: feet and world, carried from pose2d
 CLEAN_SCHEMA = pa.schema(
     [
         ("clip_id", pa.string()),
@@ -30,6 +31,8 @@ CLEAN_SCHEMA = pa.schema(
         ("box", pa.list_(pa.float32(), 4)),
         ("keypoints", pa.list_(pa.float32(), 51)),
         ("interpolated", pa.bool_()),
+        ("feet", pa.list_(pa.float32(), FEET * 3)),
+        ("world", pa.list_(pa.float32(), WORLD * 3)),
     ]
 )
 
@@ -42,6 +45,8 @@ class Clip:
     box: np.ndarray           # n x 4
     keypoints: np.ndarray     # n x 17 x 3
     interpolated: np.ndarray  # n bool
+    feet: np.ndarray          # n x 4 x 3: heels and toes (score 0: none)
+    world: np.ndarray         # n x 33 x 3: world landmarks in metres (NaN: none)
 
 
 @dataclass(frozen=True)
@@ -69,6 +74,8 @@ def clips_table(clips: list[Clip], fps: float) -> pa.Table:
         fixed_list(np.concatenate([c.box for c in clips]).reshape(-1, 4)),
         fixed_list(np.concatenate([c.keypoints for c in clips]).reshape(-1, KEYPOINTS * 3)),
         pa.array(np.concatenate([c.interpolated for c in clips]), pa.bool_()),
+        fixed_list(np.concatenate([c.feet for c in clips]).reshape(-1, FEET * 3)),
+        fixed_list(np.concatenate([c.world for c in clips]).reshape(-1, WORLD * 3)),
     ], schema=CLEAN_SCHEMA)
 
 
@@ -89,9 +96,11 @@ def read_clean(path: Path) -> CleanFile:
     box = column_array(table, "box", (4,))
     kps = column_array(table, "keypoints", (KEYPOINTS, 3))
     interp = column_array(table, "interpolated").astype(bool)
+    feet, world = column_array(table, "feet", (FEET, 3)), column_array(table, "world", (WORLD, 3))
     clips = []
     for clip_id in dict.fromkeys(ids):  # file order
         rows = np.flatnonzero(ids == clip_id)
-        clips.append(Clip(str(clip_id), int(track[rows[0]]), frame[rows], box[rows], kps[rows], interp[rows]))
+        clips.append(Clip(str(clip_id), int(track[rows[0]]), frame[rows], box[rows], kps[rows], interp[rows],
+                          feet[rows], world[rows]))
     return CleanFile(SegmentInfo.from_meta(meta, path), clips, str(meta.get("spans_from", "manifest")),
                      int(meta.get("dropped_short", 0)), str(meta.get("fingerprint", "")))

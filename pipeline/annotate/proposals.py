@@ -1,10 +1,11 @@
 """Proposed manifests: which tracks look like real dancers, and where a track seems to jump.
 
 An annotator should mostly confirm. A track is proposed ``keep=no``, with the reason, when
-it is too short, much smaller than the segment's main dancers, nearly static, or poorly
-seen (low keypoint confidence). A kept track is cut in two where it jumps: a sudden large
-displacement, or a break in keypoint similarity between neighbouring frames, which is
-what an id swap between two people looks like.
+it is too short, much smaller than the segment's main dancers, nearly static, poorly
+seen (low keypoint confidence), or its legs are not seen (seated behind instruments, cut
+off by the frame: no use for 3D dance, and the usual look of musicians and audience). A
+kept track is cut in two where it jumps: a sudden large displacement, or a break in
+keypoint similarity between neighbouring frames, which is what an id swap between two people looks like.
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ class ProposalOptions:
     min_relative_height: float = 0.5   # median box height below this share of the tallest main track: small
     min_motion: float = 0.035          # motion energy below this: static (audience, seated people)
     min_score: float = 0.3             # mean keypoint confidence below this: poorly seen
+    min_leg_score: float = 0.5         # mean confidence of hips, knees and ankles below this: legs not seen
     jump_ratio: float = 0.5            # centre moves more than this x box height in one step: cut
     swap_oks: float = 0.2              # keypoint similarity between neighbouring frames below this: cut
     kp_min_score: float = 0.2
@@ -38,6 +40,7 @@ class TrackStats:
     mean_score: float
     box_height: float   # median box height / frame height
     motion: float       # median over joints of the spread of their position over time / median box height
+    leg_score: float = 1.0  # mean confidence of the hips, knees and ankles
 
 
 def track_stats(tracks: SegmentTracks, track_id: int, kp_min_score: float = 0.2) -> TrackStats:
@@ -54,7 +57,7 @@ def track_stats(tracks: SegmentTracks, track_id: int, kp_min_score: float = 0.2)
     # The median ignores a lone noisy joint (a jittering ankle behind a musician's instrument).
     motion = float(np.median(spreads)) / max(median_h, 1.0) if spreads else 0.0
     return TrackStats(track_id, len(rows), float(tracks.time[rows[0]]), float(tracks.time[rows[-1]]),
-                      float(kps[:, :, 2].mean()), median_h / tracks.height, motion)
+                      float(kps[:, :, 2].mean()), median_h / tracks.height, motion, float(kps[:, 11:, 2].mean()))
 
 
 def jump_points(tracks: SegmentTracks, track_id: int, opts: ProposalOptions) -> list[int]:
@@ -85,6 +88,9 @@ def reject_reason(stats: TrackStats, main_height: float, opts: ProposalOptions) 
         reasons.append(f"nearly static (motion {stats.motion:.3f} < {opts.min_motion})")
     if stats.mean_score < opts.min_score:
         reasons.append(f"low keypoint confidence ({stats.mean_score:.2f} < {opts.min_score})")
+    if stats.leg_score < opts.min_leg_score:
+        reasons.append(f"legs not seen (seated or cut off: leg confidence {stats.leg_score:.2f} "
+                       f"< {opts.min_leg_score})")
     return "; ".join(reasons)
 
 

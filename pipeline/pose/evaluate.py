@@ -18,7 +18,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import cv2
@@ -26,6 +26,7 @@ import numpy as np
 
 from pipeline.core.errors import InputError
 from pipeline.pose.models.pose import COCO17
+from pipeline.pose.pose2d import Pose2dOptions, find_people, lift_dark
 from pipeline.pose.tracking import iou_matrix
 
 TORSO = (5, 12)  # left shoulder, right hip
@@ -44,8 +45,8 @@ def _xyxy(bbox: list[float]) -> np.ndarray:
     return np.array([x, y, x + w, y + h], np.float32)
 
 
-def predict(coco, images: Path, detector, pose, gt_boxes: bool) -> list[Prediction]:
-    """Detector (or annotated) boxes and keypoints for every image of ``coco``."""
+def predict(coco, images: Path, detector, pose, gt_boxes: bool, opts: Pose2dOptions) -> list[Prediction]:
+    """Detector (or annotated) boxes and keypoints for every image of ``coco``, chosen as the stage does."""
     out = []
     for image_id in sorted(coco.getImgIds()):
         info = coco.loadImgs(image_id)[0]
@@ -53,14 +54,15 @@ def predict(coco, images: Path, detector, pose, gt_boxes: bool) -> list[Predicti
         image = cv2.imread(str(path))
         if image is None:
             raise InputError(path, "cannot read this image (named by the annotation file)")
+        image = lift_dark(image, opts.dark_mean)
         if gt_boxes:
             anns = coco.loadAnns(coco.getAnnIds(imgIds=image_id, iscrowd=False))
             boxes = np.array([_xyxy(a["bbox"]) for a in anns], np.float32).reshape(-1, 4)
             scores = np.ones(len(boxes), np.float32)
+            keypoints = pose.estimate(image, boxes).keypoints
         else:
-            dets = detector.detect(image)
-            boxes, scores = dets.boxes, dets.scores
-        keypoints = pose.estimate(image, boxes) if len(boxes) else np.zeros((0, 17, 3), np.float32)
+            people, batch = find_people(image, detector.detect(image), pose, replace(opts, top_k=100))
+            boxes, scores, keypoints = people.boxes, people.scores, batch.keypoints
         out += [Prediction(image_id, boxes[i], float(scores[i]), keypoints[i]) for i in range(len(boxes))]
     return out
 
@@ -132,7 +134,7 @@ def matching(coco, predictions: list[Prediction], image_ids: list[int]) -> dict:
 
 
 def evaluate_pose2d(annotations: Path, images: Path, detector, pose, *, gt_boxes: bool = False,
-                    describe: dict | None = None) -> dict:
+                    opts: Pose2dOptions = Pose2dOptions(), describe: dict | None = None) -> dict:
     """Scores overall, per source and per tier; ``describe`` names the models and options used."""
     from pycocotools.coco import COCO
 
@@ -141,7 +143,7 @@ def evaluate_pose2d(annotations: Path, images: Path, detector, pose, *, gt_boxes
             coco = COCO(str(annotations))
     except (OSError, ValueError, KeyError, json.JSONDecodeError) as exc:
         raise InputError(annotations, f"not a COCO keypoint annotation file: {exc}") from None
-    predictions = predict(coco, images, detector, pose, gt_boxes)
+    predictions = predict(coco, images, detector, pose, gt_boxes, opts)
     groups: dict[str, list[int]] = {"all": sorted(coco.getImgIds())}
     for image in coco.loadImgs(coco.getImgIds()):
         for field in ("source", "eval_tier"):

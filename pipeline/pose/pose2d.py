@@ -5,6 +5,11 @@ threads joined by small bounded queues, so the two CPU cores overlap work on con
 frames while memory stays constant in the video's length. With ``det_every = k > 1`` the
 detector runs on every k-th frame; in between each person's box is carried over from
 their keypoints in the previous frame.
+
+Who counts as a person (:func:`find_people`): a box at ``det_score`` or above, or a weaker one
+(down to ``confirm_score``) whose pose the pose model confirms with ``confirm_joints``
+confident joints: small, cropped and seated people score low with the detectors but give a
+clear skeleton. Very dark frames are brightened first (:func:`lift_dark`).
 """
 
 from __future__ import annotations
@@ -19,9 +24,12 @@ import numpy as np
 
 from pipeline.ingest.media import iter_frames
 from pipeline.pose.models.detector import Detections, FusedDetector, PicoDetDetector, RTMDetDetector, largest
-from pipeline.pose.models.pose import MoveNetPose, RTMPose, TinyPose
+from pipeline.pose.models.pose import BlazePose, BodyAndFeet, MoveNetPose, PoseBatch, RTMPose, TinyPose
 from pipeline.pose.models.session import create_session
-from pipeline.pose.pose2dfile import Poses, SegmentInfo, write_pose2d
+from pipeline.pose.pose2dfile import FEET, WORLD, Poses, SegmentInfo, write_pose2d
+
+DEFAULT_DETECTOR = "rtmdet-nano-person"
+DEFAULT_POSE_MODEL = "movenet-lightning"
 
 
 @dataclass(frozen=True)
@@ -31,6 +39,85 @@ class Pose2dOptions:
     carry_min_score: float = 0.2   # keypoints at least this confident define a carried-over box
     carry_margin: float = 0.15     # carried box = keypoint extent grown by this share per side
     queue_size: int = 4
+    det_score: float = 0.5         # a box this confident is a person
+    confirm_score: float = 0.0     # a weaker box down to this is a person if its pose confirms it (0: off)
+    confirm_joints: int = 10       # ... with at least this many joints ...
+    confirm_joint_score: float = 0.3  # ... at least this confident
+    confirm_min_height: float = 40.0  # ... and is at least this tall (pixels): tiny crops give confident noise
+    min_joints: int = 0            # even a sure box needs this many joints at confirm_joint_score (0: none)
+    dark_mean: float = 40.0        # frames darker than this mean pixel value are brightened (0: never)
+
+    @staticmethod
+    def from_params(params: dict) -> "Pose2dOptions":
+        names = ("top_k", "det_every", "det_score", "confirm_score", "confirm_joints", "confirm_joint_score",
+                 "confirm_min_height", "min_joints", "dark_mean")
+        fields = {f: type(getattr(Pose2dOptions, f)) for f in names}
+        return Pose2dOptions(**{f: kind(params[f]) for f, kind in fields.items() if f in params})
+
+    @property
+    def detector_floor(self) -> float:
+        """The score threshold the detectors run at: the lowest box that may become a person."""
+        return self.confirm_score if 0 < self.confirm_score < self.det_score else self.det_score
+
+
+def lift_dark(image: np.ndarray, below: float) -> np.ndarray:
+    """A frame whose mean pixel value is under ``below``, scaled so its 99.5th percentile is 200.
+
+    Night clubs and stage lighting: both models were trained on well-lit photos and see
+    nobody in a near-black frame, though the picture is there.
+    """
+    if below <= 0 or float(image.mean()) >= below:
+        return image
+    top = max(float(np.percentile(image, 99.5)), 1.0)
+    return np.clip(image.astype(np.float32) * (200.0 / top), 0, 255).astype(np.uint8)
+
+
+def _share_inside(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(Na x Nb): the share of each box of ``a``'s area that lies inside each box of ``b``."""
+    x1, y1 = np.maximum(a[:, None, 0], b[None, :, 0]), np.maximum(a[:, None, 1], b[None, :, 1])
+    x2, y2 = np.minimum(a[:, None, 2], b[None, :, 2]), np.minimum(a[:, None, 3], b[None, :, 3])
+    inter = np.clip(x2 - x1, 0, None) * np.clip(y2 - y1, 0, None)
+    area = np.maximum((a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1]), 1e-9)
+    return inter / area[:, None]
+
+
+def find_people(image: np.ndarray, dets: Detections, pose, opts: Pose2dOptions) -> tuple[Detections, PoseBatch]:
+    """The people among ``dets`` and their poses, the ``top_k`` largest first.
+
+    Boxes at ``det_score`` or above are people if their pose has ``min_joints`` joints at
+    ``confirm_joint_score`` (a detector's box around a poster or a whole test card has none);
+    of the weaker ones (the ``top_k`` most confident), those at least ``confirm_min_height``
+    tall whose pose has ``confirm_joints`` such joints and that do not lie inside a sure box.
+    """
+    strong = dets.scores >= opts.det_score
+    sure = largest(Detections(dets.boxes[strong], dets.scores[strong]), opts.top_k)
+    weak = np.flatnonzero(~strong)
+    if opts.confirm_score > 0:  # the candidates worth a pose: tall enough, and not a part of a sure person
+        box = dets.boxes[weak]
+        worth = (box[:, 3] - box[:, 1] >= opts.confirm_min_height) & (
+            _share_inside(box, sure.boxes).max(1, initial=0.0) < 0.5)
+        weak = weak[worth]
+        weak = weak[np.argsort(-dets.scores[weak], kind="stable")][: opts.top_k]
+    else:
+        weak = weak[:0]
+    boxes = np.concatenate([sure.boxes, dets.boxes[weak]]).reshape(-1, 4)
+    scores = np.concatenate([sure.scores, dets.scores[weak]])
+    body_model = pose.body if isinstance(pose, BodyAndFeet) else pose  # the feet only for the people kept
+    batch: PoseBatch = body_model.estimate(image, boxes)
+    joints = (batch.keypoints[:, :, 2] >= opts.confirm_joint_score).sum(1)
+    is_sure = (np.arange(len(boxes)) < len(sure)) & (joints >= opts.min_joints)
+    # A weak box lying mostly inside a sure one is a part of that person (a lap, a torso), not another.
+    inside = _share_inside(boxes, sure.boxes[is_sure[: len(sure)]]).max(1, initial=0.0) >= 0.5
+    tall = boxes[:, 3] - boxes[:, 1] >= opts.confirm_min_height
+    confirmed = (np.arange(len(boxes)) >= len(sure)) & (joints >= opts.confirm_joints) & tall & ~inside
+    keep = np.flatnonzero(is_sure | confirmed)
+    area = (boxes[keep, 2] - boxes[keep, 0]) * (boxes[keep, 3] - boxes[keep, 1])
+    keep = keep[np.lexsort((-scores[keep], -area))][: opts.top_k]
+    people = Detections(boxes[keep], scores[keep])
+    if isinstance(pose, BodyAndFeet):
+        return people, pose.complete(image, people.boxes, PoseBatch.body_only(batch.keypoints[keep]))
+    world = batch.world[keep] if batch.world is not None else None
+    return people, PoseBatch(batch.keypoints[keep], batch.feet[keep], world)
 
 
 @dataclass
@@ -41,6 +128,8 @@ class FramePoses:
     scores: np.ndarray     # N
     keypoints: np.ndarray  # Nx17x3
     detected: bool
+    feet: np.ndarray       # Nx4x3
+    world: np.ndarray      # Nx33x3 (NaN: the pose model gives none)
 
 
 _DONE = object()
@@ -106,12 +195,13 @@ def estimate_segment(path: Path, fps: float, detector, pose, opts: Pose2dOptions
     def decoded() -> Iterator[tuple]:
         for frame in iter_frames(path):
             number = int(round(frame.time * fps))
-            box: Any = detector.preprocess(frame.image) if number % every == 0 else None  # None: carry over
-            yield number, frame.time, frame.image, box
+            image = lift_dark(frame.image, opts.dark_mean)
+            box: Any = detector.preprocess(image) if number % every == 0 else None  # None: carry over
+            yield number, frame.time, image, box
 
     def detected(frames: Iterator[tuple]) -> Iterator[tuple]:
         for number, time, image, box in frames:
-            dets = largest(detector.infer(box), opts.top_k) if box is not None else None
+            dets = detector.infer(box) if box is not None else None
             yield number, time, image, dets
 
     try:
@@ -121,8 +211,11 @@ def estimate_segment(path: Path, fps: float, detector, pose, opts: Pose2dOptions
             was_detected = dets is not None
             if dets is None:
                 dets = _carry(previous, image, opts)
-            keypoints = pose.estimate(image, dets.boxes)
-            result = FramePoses(number, time, dets.boxes, dets.scores, keypoints, was_detected)
+                batch: PoseBatch = pose.estimate(image, dets.boxes)
+            else:
+                dets, batch = find_people(image, dets, pose, opts)
+            world = batch.world if batch.world is not None else np.full((len(batch), WORLD, 3), np.nan, np.float32)
+            result = FramePoses(number, time, dets.boxes, dets.scores, batch.keypoints, was_detected, batch.feet, world)
             previous = result
             yield result
     finally:
@@ -140,7 +233,8 @@ def _carry(previous: FramePoses | None, image: np.ndarray, opts: Pose2dOptions) 
 
 def collect_poses(frames: Iterator[FramePoses], progress: Callable[[], None] | None = None) -> tuple[Poses, int]:
     """Collect per-person rows of every frame; returns them and the number of frames seen."""
-    rows: dict[str, list] = {k: [] for k in ("frame", "time", "person", "box", "box_score", "keypoints", "detected")}
+    rows: dict[str, list] = {k: [] for k in ("frame", "time", "person", "box", "box_score", "keypoints", "detected",
+                                             "feet", "world")}
     seen = 0
     for fp in frames:
         seen += 1
@@ -152,9 +246,11 @@ def collect_poses(frames: Iterator[FramePoses], progress: Callable[[], None] | N
         rows["box_score"].append(np.asarray(fp.scores, np.float32))
         rows["keypoints"].append(np.asarray(fp.keypoints, np.float32).reshape(n, 17, 3))
         rows["detected"].append(np.full(n, fp.detected))
+        rows["feet"].append(np.asarray(fp.feet, np.float32).reshape(n, FEET, 3))
+        rows["world"].append(np.asarray(fp.world, np.float32).reshape(n, WORLD, 3))
         if progress:
             progress()
-    empty = {"box": (0, 4), "keypoints": (0, 17, 3)}
+    empty = {"box": (0, 4), "keypoints": (0, 17, 3), "feet": (0, FEET, 3), "world": (0, WORLD, 3)}
     cat = {k: np.concatenate(v) if v else np.zeros(empty.get(k, (0,))) for k, v in rows.items()}
     return Poses(**cat), seen
 
@@ -166,39 +262,42 @@ class ModelFiles:
     """What a worker needs to build its sessions (resolved once, in the stage's process)."""
 
     detectors: tuple[tuple[str, str, tuple[int, int]], ...]  # (file, kind, input size): several are fused
-    pose: str
-    pose_kind: str  # movenet | rtmpose | tinypose
-    pose_input: tuple[int, int]
+    poses: tuple[tuple[str, str, tuple[int, int]], ...]      # the body's model, then optionally the feet's
     threads: int = 1
-    det_score: float = 0.5
+    det_score: float = 0.5      # the detectors' own threshold (Pose2dOptions.detector_floor)
     crop_padding: float = 1.25
 
 
+def model_names(value: str | list[str]) -> list[str]:
+    """``pose2d.detector`` / ``pose2d.pose_model``: one registry name, or several (a list, or joined by '+')."""
+    names = value if isinstance(value, list) else str(value).split("+")
+    return [n.strip() for n in names if n.strip()]
+
+
 def model_files(root: Path, params: dict) -> tuple[ModelFiles, dict[str, str]]:
-    """Resolve both models in the main process, so a missing one is one clear error up front."""
+    """Resolve every model in the main process, so a missing one is one clear error up front."""
     from pipeline.core.storage import sha256_file
     from pipeline.pose.models.registry import get_spec, resolve_model
 
-    dets = [get_spec(name) for name in detector_names(params.get("detector", "rtmdet-nano-person"))]
-    pose = get_spec(params.get("pose_model", "movenet-lightning"))
-    det_paths, pose_path = [resolve_model(d.name, root) for d in dets], resolve_model(pose.name, root)
-    files = ModelFiles(tuple((str(path), d.kind, d.input_size) for d, path in zip(dets, det_paths)), str(pose_path),
-                       pose.kind, pose.input_size, int(params.get("threads", 1)), float(params.get("det_score", 0.5)),
+    dets = [get_spec(name) for name in model_names(params.get("detector", DEFAULT_DETECTOR))]
+    poses = [get_spec(name) for name in model_names(params.get("pose_model", DEFAULT_POSE_MODEL))]
+    if len(poses) > 2:
+        raise ValueError(f"pose2d.pose_model names {len(poses)} models; give one, or a body model + a feet model")
+    paths = {spec.name: resolve_model(spec.name, root) for spec in dets + poses}
+    files = ModelFiles(tuple((str(paths[d.name]), d.kind, d.input_size) for d in dets),
+                       tuple((str(paths[p.name]), p.kind, p.input_size) for p in poses),
+                       int(params.get("threads", 1)), Pose2dOptions.from_params(params).detector_floor,
                        float(params.get("crop_padding", 1.25)))
-    hashes = {d.name: sha256_file(path) for d, path in zip(dets, det_paths)}
-    return files, {**hashes, pose.name: sha256_file(pose_path)}
-
-
-def detector_names(value: str | list[str]) -> list[str]:
-    """``pose2d.detector``: one registry name, or several (a list, or joined by '+') to fuse."""
-    names = value if isinstance(value, list) else str(value).split("+")
-    return [n.strip() for n in names if n.strip()]
+    return files, {name: sha256_file(path) for name, path in paths.items()}
 
 
 @dataclass(frozen=True)
 class PoseModels:
     detector: RTMDetDetector | PicoDetDetector | FusedDetector
-    pose: MoveNetPose | RTMPose | TinyPose
+    pose: MoveNetPose | RTMPose | TinyPose | BlazePose | BodyAndFeet
+
+
+POSE_WRAPPERS = {"movenet": MoveNetPose, "rtmpose": RTMPose, "tinypose": TinyPose, "blazepose": BlazePose}
 
 
 def load_pose_models(files: ModelFiles) -> PoseModels:
@@ -213,14 +312,12 @@ def load_pose_models(files: ModelFiles) -> PoseModels:
         else:
             raise ValueError(f"model kind {kind!r} is not a person detector")
     detector = detectors[0] if len(detectors) == 1 else FusedDetector(detectors)
-    session = create_session(Path(files.pose), files.threads)
-    if files.pose_kind == "movenet":
-        return PoseModels(detector, MoveNetPose(session, files.pose_input, files.crop_padding))
-    if files.pose_kind == "rtmpose":
-        return PoseModels(detector, RTMPose(session, files.pose_input, files.crop_padding))
-    if files.pose_kind == "tinypose":
-        return PoseModels(detector, TinyPose(session, files.pose_input, files.crop_padding))
-    raise ValueError(f"pose model kind {files.pose_kind!r} is not a 2D pose model")
+    poses = []
+    for path, kind, size in files.poses:
+        if kind not in POSE_WRAPPERS:
+            raise ValueError(f"model kind {kind!r} is not a 2D pose model")
+        poses.append(POSE_WRAPPERS[kind](create_session(Path(path), files.threads), size, files.crop_padding))
+    return PoseModels(detector, poses[0] if len(poses) == 1 else BodyAndFeet(*poses))
 
 
 @dataclass(frozen=True)

@@ -2,9 +2,15 @@
 
 One row per detected person per frame (the top-k largest): frame, time (s, segment clock),
 person (rank by box area, 0 = largest), box (x1, y1, x2, y2, segment pixels), box_score,
-keypoints (COCO-17 x, y, score), detected (False: the box was carried over from the
-previous frame's keypoints). The file's metadata names the segment, its fps, frame count
-and frame size, the params and the models' sha256.
+keypoints (COCO-17 x, y, score), feet (left heel, right heel, left toe, right toe as x, y,
+score; score 0 where the pose model has no feet), world (BlazePose's 33 metric world
+landmarks, metres, origin between the hips, image axes; NaN where no model gives them),
+detected (False: the box was carried over from the previous frame's keypoints). The file's
+metadata names the segment, its fps, frame count and frame size, the params and the models'
+sha256.
+
+Version 2 added ``feet`` and ``world``; version-1 files are redone (their fingerprint
+no longer matches).
 """
 
 from __future__ import annotations
@@ -19,8 +25,10 @@ import pyarrow.parquet as pq
 
 from pipeline.core.storage import column_array, fixed_list, read_meta, write_parquet
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 KEYPOINTS = 17
+FEET = 4          # left heel, right heel, left toe, right toe (pipeline.pose.models.pose.FEET)
+WORLD = 33        # BlazePose body landmarks
 POSE2D_SCHEMA = pa.schema(
     [
         ("frame", pa.int32()),            # frame number on the segment clock (round(time * fps))
@@ -30,6 +38,8 @@ POSE2D_SCHEMA = pa.schema(
         ("box_score", pa.float32()),
         ("keypoints", pa.list_(pa.float32(), KEYPOINTS * 3)),  # COCO-17 (x, y, score) flattened
         ("detected", pa.bool_()),         # False: box carried over from the previous keypoints
+        ("feet", pa.list_(pa.float32(), FEET * 3)),        # heels and toes (x, y, score) flattened
+        ("world", pa.list_(pa.float32(), WORLD * 3)),      # world landmarks (x, y, z) in metres, or NaN
     ]
 )
 
@@ -65,6 +75,8 @@ class Poses:
     box_score: np.ndarray  # N
     keypoints: np.ndarray  # N x 17 x 3
     detected: np.ndarray   # N bool
+    feet: np.ndarray       # N x 4 x 3 (score 0: no foot point)
+    world: np.ndarray      # N x 33 x 3 (NaN: none)
 
     def __len__(self) -> int:
         return len(self.frame)
@@ -78,6 +90,8 @@ class Poses:
             pa.array(np.asarray(self.box_score, np.float32), pa.float32()),
             fixed_list(np.asarray(self.keypoints, np.float32).reshape(-1, KEYPOINTS * 3)),
             pa.array(np.asarray(self.detected, bool), pa.bool_()),
+            fixed_list(np.asarray(self.feet, np.float32).reshape(-1, FEET * 3)),
+            fixed_list(np.asarray(self.world, np.float32).reshape(-1, WORLD * 3)),
         ], schema=POSE2D_SCHEMA)
 
     @staticmethod
@@ -86,7 +100,8 @@ class Poses:
                      person=column_array(table, "person").astype(np.int64), box=column_array(table, "box", (4,)),
                      box_score=column_array(table, "box_score"),
                      keypoints=column_array(table, "keypoints", (KEYPOINTS, 3)),
-                     detected=column_array(table, "detected").astype(bool))
+                     detected=column_array(table, "detected").astype(bool),
+                     feet=column_array(table, "feet", (FEET, 3)), world=column_array(table, "world", (WORLD, 3)))
 
 
 @dataclass(frozen=True)

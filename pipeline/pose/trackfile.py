@@ -15,9 +15,9 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from pipeline.core.storage import column_array, read_meta, write_parquet
-from pipeline.pose.pose2dfile import KEYPOINTS, POSE2D_SCHEMA, Poses, SegmentInfo
+from pipeline.pose.pose2dfile import FEET, KEYPOINTS, POSE2D_SCHEMA, WORLD, Poses, SegmentInfo
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2  # 2: pose2d's feet and world columns
 TRACKS_SCHEMA = POSE2D_SCHEMA.append(pa.field("track_id", pa.int32()))
 
 
@@ -34,6 +34,8 @@ class SegmentTracks:
     box: np.ndarray        # N x 4
     keypoints: np.ndarray  # N x 17 x 3
     fingerprint: str
+    feet: np.ndarray       # N x 4 x 3 (score 0: none)
+    world: np.ndarray      # N x 33 x 3 (NaN: none)
 
     def of(self, track_id: int) -> np.ndarray:
         """Row indices of one track, in frame order."""
@@ -64,4 +66,6 @@ def read_tracks(path: Path) -> SegmentTracks:
         box=column_array(table, "box", (4,)),
         keypoints=column_array(table, "keypoints", (KEYPOINTS, 3)),
         fingerprint=str(meta.get("fingerprint", "")),
+        feet=column_array(table, "feet", (FEET, 3)),
+        world=column_array(table, "world", (WORLD, 3)),
     )

@@ -81,3 +81,26 @@ def test_movenet_is_converted_from_googles_tflite_in_a_throwaway_environment(tmp
     path = fetch_model("movenet-lightning", tmp_path / "models")  # raises unless its outputs match the reference
     assert path.name == "movenet_singlepose_lightning_4_dequant.onnx"
     assert importlib.util.find_spec("tensorflow") is None and importlib.util.find_spec("tf2onnx") is None
+
+
+@pytest.mark.slow
+def test_blazepose_is_fetched_from_the_pinned_mediapipe_wheel_and_converted(tmp_path: Path, monkeypatch) -> None:
+    # The real route: pip downloads the wheel from the package registry (sha256 checked), the
+    # TFLite member is checked, tf2onnx converts it in a throw-away venv, outputs are verified.
+    monkeypatch.delenv("DANCE3D_MODELS", raising=False)
+    path = fetch_model("blazepose-full", tmp_path / "models", force=True)
+    assert path == tmp_path / "models/blazepose_full.onnx"
+    verify_outputs("blazepose-full", path)
+    assert importlib.util.find_spec("tensorflow") is None and importlib.util.find_spec("mediapipe") is None
+
+
+def test_a_wheel_with_the_wrong_checksum_is_refused(tmp_path: Path, monkeypatch) -> None:
+    import dataclasses
+
+    from pipeline.pose.models import fetch
+
+    monkeypatch.setattr(fetch, "download_wheel", lambda requirement: b"PK\x05\x06" + b"\0" * 18)  # an empty zip
+    route = dataclasses.replace(ROUTES["blazepose-full"][0])
+    with pytest.raises(FetchError, match="checksum mismatch"):
+        fetch.fetch_route(route, tmp_path / "blazepose_full.onnx")
+    assert not (tmp_path / "blazepose_full.onnx").exists()

@@ -51,7 +51,7 @@ def test_detector_and_pose_reproduce_the_golden_outputs(models_dir: Path, detect
         assert np.abs(dets.scores[: len(expected)] - expected[:, 4]).max() <= 0.01
         assert int((dets.scores >= 0.5).sum()) == ref["detector"]["num_with_score_ge_0.5"]
         if ref.get("pose_on_top_person"):
-            kps = movenet.estimate(image, dets.boxes[:1])[0]
+            kps = movenet.estimate(image, dets.boxes[:1]).keypoints[0]
             want = np.array([ref["pose_on_top_person"]["keypoints"][name] for name in COCO17])
             assert np.abs(kps[:, :2] - want[:, :2]).max() <= 3.0
             assert np.abs(kps[:, 2] - want[:, 2]).max() <= 0.05
@@ -102,7 +102,7 @@ def test_rtmpose_decoder_maps_simcc_peaks_back_to_the_image(tmp_path: Path) -> N
     pose = RTMPose(create_session(_simcc_model(tmp_path / "tiny.onnx", x_peaks, y_peaks)))
     image = np.zeros((480, 640, 3), np.uint8)
     boxes = np.array([[100, 50, 220, 410], [400, 100, 460, 180]], np.float32)
-    out = pose.estimate(image, boxes)  # both crops in one batched call
+    out = pose.estimate(image, boxes).keypoints  # both crops in one batched call
     assert out.shape == (2, 17, 3)
     for i, box in enumerate(boxes):
         m = crop_transform(box, 192, 256)

@@ -3,19 +3,22 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
+from pipeline.annotate.clipfile import read_clean
 from pipeline.core.errors import ModelMissingError
 from pipeline.core.failures import read_failures
 from pipeline.core.storage import read_meta
 from pipeline.ingest.media import probe
-from pipeline.pose.models.detector import RTMDetDetector
+from pipeline.pose.models.detector import Detections, RTMDetDetector
 from pipeline.pose.models.pose import COCO17, MoveNetPose
 from pipeline.pose.models.session import create_session
-from pipeline.pose.pose2d import Pose2dOptions, collect_poses, estimate_segment
+from pipeline.pose.pose2d import Pose2dOptions, collect_poses, estimate_segment, find_people, lift_dark
 from pipeline.pose.pose2dfile import read_pose2d
 from pipeline.pose.trackfile import read_tracks
 from tests.conftest import (
@@ -137,19 +140,88 @@ def test_missing_model_stops_the_stage_with_one_line(project: Path, tmp_path: Pa
         run_stages(project, "pose2d")
     message = str(err.value)
     assert "\n" not in message
-    assert message.startswith("model movenet-lightning: movenet_singlepose_lightning_4_dequant.onnx not found; "
+    assert message.startswith("model tinypose: tinypose_256x192.onnx not found; "
                               f"put it in {only_detector} or {project / 'models'}")
 
 
-def test_two_detectors_can_be_fused_in_the_stage(project: Path, media_dir: Path, models_dir: Path,
-                                                  monkeypatch) -> None:
+def test_the_default_models_put_heels_toes_and_world_landmarks_in_the_data_and_clean_keeps_them(
+        project: Path, media_dir: Path, models_dir: Path, monkeypatch) -> None:
     monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
     write_sources(project, [("solo", media_dir / "videos/dance_solo_384x496_30fps.mp4")])
-    (project / "annotations/segments.csv").write_text("video_id,start,end\nsolo,0,2\n")
-    set_params(project, "pose2d", detector="rtmdet-nano-person+picodet-s-pedestrian", pose_model="tinypose")
-    run_stages(project, "download", "trim", "pose2d")
+    (project / "annotations/segments.csv").write_text("video_id,start,end\nsolo,0,3\n")
+    run_stages(project, "download", "trim", "pose2d", "track")
+    tracks = read_tracks(project / "data/tracks/solo_000.parquet")
+    (project / "manifests/tracks").mkdir()
+    (project / "manifests/tracks/solo_000.csv").write_text(  # the annotator keeps her (she barely moves here)
+        "track_id,start,end,keep,note,frames,mean_score,box_height,motion,reason\n"
+        + "".join(f"{t},{tracks.time[tracks.of(t)][0]:.3f},{tracks.time[tracks.of(t)][-1]:.3f},yes,,,,,,\n"
+                  for t in tracks.ids))
+    run_stages(project, "clean")
     pose2d = read_pose2d(project / "data/pose2d/solo_000.parquet")
-    assert len(set(pose2d.poses.frame)) >= 0.95 * 60
-    assert (pose2d.poses.person == 0).sum() == len(set(pose2d.poses.frame))  # one dancer: one box per frame
+    poses = pose2d.poses
+    assert len(set(poses.frame)) >= 0.95 * 90
+    assert (poses.person == 0).sum() == len(set(poses.frame))  # one dancer: one box per frame
     hashes = read_meta(project / "data/pose2d/solo_000.parquet")["inputs"]
-    assert {"rtmdet-nano-person", "picodet-s-pedestrian", "tinypose"} <= set(hashes)
+    assert {"rtmdet-nano-person", "tinypose", "blazepose-full"} <= set(hashes)
+    # Heels and toes are confident and hang below the ankles (she stands), within a foot's length.
+    height = poses.box[:, 3] - poses.box[:, 1]
+    assert (poses.feet[:, :, 2] > 0.5).mean() >= 0.9
+    for foot, ankle in ((0, 15), (1, 16), (2, 15), (3, 16)):
+        reach = np.linalg.norm(poses.feet[:, foot, :2] - poses.keypoints[:, ankle, :2], axis=1) / height
+        assert np.median(reach) < 0.1
+    assert np.isfinite(poses.world).all()
+    shin = np.linalg.norm(poses.world[:, 25] - poses.world[:, 27], axis=1)
+    assert 0.25 < np.median(shin) < 0.6  # metres
+    clean = read_clean(project / "data/clean/solo_000.parquet")
+    clip = clean.clips[0]
+    rows = tracks.of(clip.track_id)
+    shared = np.isin(clip.frame, tracks.frame[rows]) & ~clip.interpolated
+    by_frame = {int(f): r for f, r in zip(tracks.frame[rows], rows)}
+    picked = [by_frame[int(f)] for f in clip.frame[shared]]
+    assert np.allclose(clip.feet[shared], tracks.feet[picked]) and np.allclose(clip.world[shared], tracks.world[picked])
+
+
+@pytest.fixture(scope="module")
+def default_models(models_dir: Path):
+    from pipeline.core.params import load_params, stage_params
+    from pipeline.pose.pose2d import load_pose_models, model_files
+    from tests.conftest import PROJECT
+
+    params = stage_params(load_params(PROJECT / "params.yaml"), "pose2d")
+    files, _ = model_files(PROJECT, params)  # found through DANCE3D_MODELS, as models_dir was
+    return load_pose_models(files), Pose2dOptions.from_params(params)
+
+
+def test_a_weak_box_is_a_person_only_when_its_pose_confirms_one(media_dir: Path, default_models) -> None:
+    models, opts = default_models
+    image = cv2.imread(str(media_dir / "images/dance_frame100.jpg"))
+    h, w = image.shape[:2]
+    dancer = models.detector.detect(image).boxes[0]
+    wall = np.array([0, 0, 0.12 * w, 0.3 * h], np.float32)  # a corner of the room
+    lap = np.array([dancer[0], (dancer[1] + dancer[3]) / 2, dancer[2], dancer[3]], np.float32)  # her legs only
+    weak = opts.confirm_score + 0.02
+    people, batch = find_people(image, Detections(np.stack([dancer, wall]), np.array([weak, weak], np.float32)),
+                                models.pose, opts)
+    assert len(people) == 1 and np.allclose(people.boxes[0], dancer)  # confirmed by her skeleton; the wall is not
+    people, _ = find_people(image, Detections(np.stack([dancer, lap]), np.array([0.9, weak], np.float32)),
+                            models.pose, opts)
+    assert len(people) == 1  # a weak box inside a sure person is a part of that person
+    people, _ = find_people(image, Detections(wall[None], np.array([0.9], np.float32)), models.pose, opts)
+    assert len(people) == 0  # even a sure box needs a confident joint (a box around a poster has none)
+    people, _ = find_people(image, Detections(lap[None], np.array([0.9], np.float32)), models.pose, opts)
+    assert len(people) == 1  # ... and that is all it needs: half a dancer is still a person
+    none, _ = find_people(image, Detections(np.stack([dancer]), np.array([weak], np.float32)), models.pose,
+                          replace(opts, confirm_score=0.0))
+    assert len(none) == 0  # confirmation off: weak boxes are not people
+
+
+def test_a_very_dark_frame_is_brightened_so_the_dancer_is_found(media_dir: Path, default_models) -> None:
+    models, opts = default_models
+    image = cv2.imread(str(media_dir / "images/dance_frame100.jpg"))
+    dark = (image.astype(np.float32) * 0.012).round().astype(np.uint8)  # mean pixel value about 2
+    assert len(find_people(dark, models.detector.detect(dark), models.pose, opts)[0]) == 0
+    lifted = lift_dark(dark, opts.dark_mean)
+    assert lifted.mean() > 40
+    people, _ = find_people(lifted, models.detector.detect(lifted), models.pose, opts)
+    assert len(people) >= 1
+    assert lift_dark(image, opts.dark_mean) is image  # a normal frame is left alone

@@ -1,9 +1,13 @@
-"""Top-down 2D pose on person crops: MoveNet (single-person, batch 1) and RTMPose (SimCC, batched).
+"""Top-down 2D pose on person crops: MoveNet, RTMPose (SimCC), PP-TinyPose (heatmaps), BlazePose.
 
-Both return COCO-17 keypoints as (x, y, score) in image pixels.
+Every wrapper's ``estimate(image, boxes)`` returns a :class:`PoseBatch`: COCO-17 keypoints as
+(x, y, score) in image pixels, plus heels and toes and metric world landmarks where the
+model gives them (BlazePose).
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -13,8 +17,26 @@ COCO17 = (
     "left_elbow", "right_elbow", "left_wrist", "right_wrist", "left_hip", "right_hip",
     "left_knee", "right_knee", "left_ankle", "right_ankle",
 )
+FEET = ("left_heel", "right_heel", "left_toe", "right_toe")
 RGB_MEAN = np.array([123.675, 116.28, 103.53], np.float32)
 RGB_STD = np.array([58.395, 57.12, 57.375], np.float32)
+
+
+@dataclass(frozen=True)
+class PoseBatch:
+    """The poses of N people in one image."""
+
+    keypoints: np.ndarray           # N x 17 x 3: COCO-17 (x, y, score), image pixels
+    feet: np.ndarray                # N x 4 x 3: FEET (x, y, score); score 0 where the model has no feet
+    world: np.ndarray | None = None  # N x 33 x 3: BlazePose world landmarks (m, origin between the hips)
+
+    def __len__(self) -> int:
+        return len(self.keypoints)
+
+    @staticmethod
+    def body_only(keypoints: np.ndarray) -> "PoseBatch":
+        keypoints = np.asarray(keypoints, np.float32).reshape(-1, 17, 3)
+        return PoseBatch(keypoints, np.zeros((len(keypoints), len(FEET), 3), np.float32))
 
 
 def crop_transform(box: np.ndarray, out_w: int, out_h: int, padding: float = 1.25) -> np.ndarray:
@@ -36,9 +58,9 @@ def crop_transform(box: np.ndarray, out_w: int, out_h: int, padding: float = 1.2
 
 
 def to_image(points: np.ndarray, matrix: np.ndarray) -> np.ndarray:
-    """Map crop-pixel points (..., 2) back to the image through the inverse of ``matrix``."""
-    s, tx, ty = matrix[0, 0], matrix[0, 2], matrix[1, 2]
-    return np.stack([(points[..., 0] - tx) / s, (points[..., 1] - ty) / s], axis=-1)
+    """Map crop-pixel points (..., 2) back to the image through the inverse of the 2x3 ``matrix``."""
+    inverse = cv2.invertAffineTransform(np.asarray(matrix, np.float64))
+    return points @ inverse[:, :2].T + inverse[:, 2]
 
 
 def warp(image: np.ndarray, matrix: np.ndarray, out_w: int, out_h: int) -> np.ndarray:
@@ -66,7 +88,7 @@ class MoveNetPose:
             crop_xy = np.stack([yx_score[:, 1] * w, yx_score[:, 0] * h], axis=-1)
             out[i, :, :2] = to_image(crop_xy, m)
             out[i, :, 2] = yx_score[:, 2]
-        return out
+        return PoseBatch.body_only(out)
 
 
 def decode_simcc(simcc_x: np.ndarray, simcc_y: np.ndarray, split_ratio: float = 2.0) -> np.ndarray:
@@ -98,7 +120,7 @@ class RTMPose:
 
     def estimate(self, image: np.ndarray, boxes: np.ndarray) -> np.ndarray:
         if len(boxes) == 0:
-            return np.zeros((0, 17, 3), np.float32)
+            return PoseBatch.body_only(np.zeros((0, 17, 3), np.float32))
         w, h = self.size
         matrices = [crop_transform(box, w, h, self.padding) for box in boxes]
         crops = np.stack([cv2.cvtColor(warp(image, m, w, h), cv2.COLOR_BGR2RGB) for m in matrices])
@@ -108,7 +130,7 @@ class RTMPose:
         out = decoded.copy()
         for i, m in enumerate(matrices):
             out[i, :, :2] = to_image(decoded[i, :, :2], m)
-        return out
+        return PoseBatch.body_only(out)
 
 
 def decode_heatmaps(heatmaps: np.ndarray, stride: float) -> np.ndarray:
@@ -160,4 +182,172 @@ class TinyPose:
             decoded = decode_heatmaps(heatmaps, stride=w / heatmaps.shape[-1])[0]
             out[i, :, :2] = to_image(decoded[:, :2], m)
             out[i, :, 2] = decoded[:, 2]
+        return PoseBatch.body_only(out)
+
+
+# BlazePose GHUM (MODELS.md 4b): 33 body landmarks, then auxiliary ROI points (33: hip centre,
+# 34: a point above the head whose distance from the hips sets the ROI's size).
+BLAZE_TO_COCO17 = (0, 2, 5, 7, 8, 11, 12, 13, 14, 15, 16, 23, 24, 25, 26, 27, 28)
+BLAZE_FEET = (29, 30, 31, 32)  # left heel, right heel, left foot index (toe tip), right foot index
+
+
+def _sigmoid(x: np.ndarray) -> np.ndarray:
+    return 1.0 / (1.0 + np.exp(-np.clip(x, -60, 60)))
+
+
+def roi_transform(center: np.ndarray, scale_point: np.ndarray, size: int, scale: float = 1.25) -> np.ndarray:
+    """2x3 affine onto a ``size`` square crop, MediaPipe's pose ROI from two points.
+
+    The crop is centred on ``center`` (the hips), its side is ``scale`` x twice the distance to
+    ``scale_point``, and it is rotated so that the direction centre -> scale point is up:
+    a dancer upside down or lying comes out upright.
+    """
+    v = np.asarray(scale_point, np.float64) - np.asarray(center, np.float64)
+    side = max(2.0 * float(np.hypot(*v)) * scale, 1.0)
+    phi = -np.pi / 2 - np.arctan2(v[1], v[0])  # rotation taking v to (0, -|v|), y pointing down
+    k = size / side
+    rot = k * np.array([[np.cos(phi), -np.sin(phi)], [np.sin(phi), np.cos(phi)]])
+    shift = size / 2 - rot @ np.asarray(center, np.float64)
+    return np.hstack([rot, shift[:, None]])
+
+
+class BlazePose:
+    """BlazePose GHUM Full (NHWC RGB [0, 1] 256x256, batch 1), with MediaPipe's region of interest.
+
+    A person box gives a first square crop, upright; if the model's heatmaps are weak there
+    (mean peak logit under ``orientation_check``: the body is probably upside down or lying),
+    the crop is also tried turned by 90, 180 and 270 degrees and the strongest kept. The
+    landmarks of that pass place the hips' ROI point and the scale point, and a second pass on
+    that rotated, torso-scaled crop (MediaPipe's ROI) gives the landmarks kept. (MediaPipe
+    takes the first ROI from its own detector, whose TFLite does not convert, and in video
+    from the previous frame; a fresh first pass per frame costs one more crop but cannot
+    drift.) Scores are the sigmoid of the visibility logits times the pose presence.
+    """
+
+    def __init__(self, session, input_size: tuple[int, int] = (256, 256), padding: float = 1.25, passes: int = 2,
+                 orientation_check: float = 0.5):
+        self.session = session
+        self.size = input_size[0]
+        self.padding = padding
+        self.passes = passes
+        self.orientation_check = orientation_check
+        self.input_name = session.get_inputs()[0].name
+        shapes = {o.name: o.shape for o in session.get_outputs()}
+        self.landmarks_name = next(n for n, s in shapes.items() if s[-1] == 195)
+        self.presence_name = next(n for n, s in shapes.items() if list(s) == [1, 1])
+        self.world_name = next(n for n, s in shapes.items() if s[-1] == 117)
+        self.heatmap_name = next(n for n, s in shapes.items() if len(s) == 4 and s[-1] == 39)
+
+    def _run(self, image: np.ndarray, matrix: np.ndarray) -> tuple[np.ndarray, float, np.ndarray, float]:
+        crop = cv2.cvtColor(warp(image, matrix, self.size, self.size), cv2.COLOR_BGR2RGB)
+        tensor = (crop.astype(np.float32) / 255.0)[None]
+        landmarks, presence, world, heatmaps = self.session.run(
+            [self.landmarks_name, self.presence_name, self.world_name, self.heatmap_name], {self.input_name: tensor})
+        strength = float(heatmaps[0, :, :, :33].reshape(-1, 33).max(0).mean())
+        return landmarks.reshape(39, 5), float(presence.ravel()[0]), world.reshape(39, 3), strength
+
+    def _first_crop(self, box: np.ndarray) -> list[np.ndarray]:
+        """The box's square crop upright, then turned a quarter, a half and three quarters."""
+        centre = (np.asarray(box[:2], np.float64) + np.asarray(box[2:], np.float64)) / 2
+        side = self.padding * max(float(box[2] - box[0]), float(box[3] - box[1]), 1.0)
+        out = []
+        for angle in (0.0, 0.5 * np.pi, np.pi, 1.5 * np.pi):  # where the head is assumed to point
+            head = centre + side / 2.5 * np.array([np.sin(angle), -np.cos(angle)])
+            out.append(roi_transform(centre, head, self.size, scale=1.25))
         return out
+
+    def estimate(self, image: np.ndarray, boxes: np.ndarray) -> PoseBatch:
+        return self._estimate(image, boxes, [None] * len(boxes))
+
+    def estimate_in_rois(self, image: np.ndarray, rois: list[np.ndarray | None], boxes: np.ndarray) -> PoseBatch:
+        """One pass per person on a given ROI (2x3 crop matrix); ``None`` falls back to the box."""
+        return self._estimate(image, boxes, rois)
+
+    def _estimate(self, image: np.ndarray, boxes: np.ndarray, rois: list) -> PoseBatch:
+        n = len(boxes)
+        keypoints = np.zeros((n, 17, 3), np.float32)
+        feet = np.zeros((n, len(FEET), 3), np.float32)
+        world = np.zeros((n, 33, 3), np.float32)
+        for i, box in enumerate(boxes):
+            if rois[i] is not None:
+                m = rois[i]
+                result = self._run(image, m)
+                self._fill(i, result, m, keypoints, feet, world)
+                continue
+            crops = self._first_crop(box)
+            m = crops[0]
+            result = self._run(image, m)
+            if result[3] < self.orientation_check:
+                tries = [(self._run(image, c), c) for c in crops[1:]]
+                best = max(tries, key=lambda t: t[0][3])
+                if best[0][3] > result[3]:
+                    result, m = best
+            for _ in range(self.passes - 1):
+                xy = to_image(result[0][:, :2].astype(np.float64), m)
+                m = roi_transform(xy[33], xy[34], self.size)
+                result = self._run(image, m)
+            self._fill(i, result, m, keypoints, feet, world)
+        return PoseBatch(keypoints, feet, world)
+
+    @staticmethod
+    def _fill(i: int, result: tuple, m: np.ndarray, keypoints: np.ndarray, feet: np.ndarray,
+              world: np.ndarray) -> None:
+        landmarks, presence, world_raw, _ = result
+        xy = to_image(landmarks[:, :2].astype(np.float64), m)
+        score = _sigmoid(landmarks[:, 3]) * presence
+        keypoints[i] = np.column_stack([xy[list(BLAZE_TO_COCO17)], score[list(BLAZE_TO_COCO17)]])
+        feet[i] = np.column_stack([xy[list(BLAZE_FEET)], score[list(BLAZE_FEET)]])
+        # World landmarks come in the crop's orientation; turn them back to the image's.
+        rot = m[:, :2] / np.hypot(*m[0, :2])
+        world[i] = np.column_stack([world_raw[:33, :2] @ rot, world_raw[:33, 2]])
+
+
+def body_roi(keypoints: np.ndarray, size: int, min_score: float = 0.3) -> np.ndarray | None:
+    """MediaPipe's pose ROI from a COCO-17 body: centred on the hips, up along the spine.
+
+    The scale point lies along hips -> shoulders at the body's reach from the hip centre
+    (the farthest confident joint) times 1.1; ``None`` without confident hips and shoulders.
+    """
+    kp = np.asarray(keypoints, np.float64)
+    if (kp[[5, 6, 11, 12], 2] < min_score).any():
+        return None
+    hips, shoulders = kp[[11, 12], :2].mean(0), kp[[5, 6], :2].mean(0)
+    spine = shoulders - hips
+    length = float(np.hypot(*spine))
+    if length < 1.0:
+        return None
+    good = kp[kp[:, 2] >= min_score, :2]
+    reach = max(float(np.linalg.norm(good - hips, axis=1).max()), 1.5 * length) * 1.1
+    return roi_transform(hips, hips + spine / length * reach, size)
+
+
+class BodyAndFeet:
+    """One model's body (COCO-17) with BlazePose's heels, toes and world landmarks.
+
+    BlazePose runs once per person, on the ROI that the body model's hips and shoulders give
+    (upside-down and lying dancers come out upright), or on the box's upright square when
+    those are not confident. Each side's foot points are then moved by the difference between the two
+    models' ankles of that side, so the feet hang from the body model's ankles (the foot's
+    own shape is kept).
+    """
+
+    def __init__(self, body, feet: BlazePose) -> None:
+        self.body, self.feet = body, feet
+
+    def estimate(self, image: np.ndarray, boxes: np.ndarray) -> PoseBatch:
+        return self.complete(image, boxes, self.body.estimate(image, boxes))
+
+    def complete(self, image: np.ndarray, boxes: np.ndarray, body: PoseBatch) -> PoseBatch:
+        """Add the feet to poses ``body`` already computed by the body model for ``boxes``."""
+        size = self.feet.size
+        # Without confident hips and shoulders (seated, cropped), one upright pass on the box: the
+        # feet are rarely visible then, and the orientation search would cost four more passes.
+        rois = [body_roi(kp, size) if body_roi(kp, size) is not None else crop_transform(box, size, size,
+                                                                                            self.feet.padding)
+                for kp, box in zip(body.keypoints, boxes)]
+        feet = self.feet.estimate_in_rois(image, rois, boxes)
+        moved = feet.feet.copy()
+        for side, ankle in ((0, 15), (1, 16)):  # FEET: left heel, right heel, left toe, right toe
+            shift = body.keypoints[:, ankle, :2] - feet.keypoints[:, ankle, :2]
+            moved[:, [side, side + 2], :2] += shift[:, None, :]
+        return PoseBatch(body.keypoints, moved, feet.world)

@@ -23,7 +23,7 @@ log = logging.getLogger(__name__)
 class ModelSpec:
     name: str
     file: str
-    kind: str                   # rtmdet | picodet | movenet | rtmpose | tinypose | lifter
+    kind: str                   # rtmdet | picodet | movenet | rtmpose | tinypose | blazepose | lifter
     input_size: tuple[int, int]  # (width, height) the model expects
     sha256: str | None          # None: not pinned, so never downloaded automatically
     url: str | None = None      # where users get it by hand (fetchable models have routes in fetch.py)
@@ -56,6 +56,11 @@ REGISTRY: dict[str, ModelSpec] = {
             "d6b08c1ada0a807d27b260d3a19cfade722e7253cc1bfe59d6bfb98932061a1f",
             note="PP-TinyPose 256x192 (PaddleDetection, Apache-2.0), COCO-17 heatmaps, converted from an OpenVINO "
                  "IR export (MODELS.md 4c); no official ONNX download",
+        ),
+        ModelSpec(
+            "blazepose-full", "blazepose_full.onnx", "blazepose", (256, 256), None,
+            note="BlazePose GHUM Full (Google, Apache-2.0): 33 landmarks with heels and toes, and world "
+                 "landmarks; converted from the mediapipe 0.10.21 wheel by `dance3d models fetch blazepose-full`",
         ),
         ModelSpec(
             "rtmpose-m", "rtmpose-m_simcc-body7_256x192.onnx", "rtmpose", (192, 256), None,

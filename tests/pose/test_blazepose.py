@@ -1,0 +1,77 @@
+"""BlazePose with MediaPipe's region of interest, and feet hung from another model's body."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from pipeline.pose.models.pose import BlazePose, BodyAndFeet, TinyPose, roi_transform
+from pipeline.pose.models.session import create_session
+
+
+@pytest.fixture(scope="module")
+def blazepose(models_dir: Path) -> BlazePose:
+    return BlazePose(create_session(models_dir / "blazepose_full.onnx"))
+
+
+@pytest.fixture(scope="module")
+def dancer(media_dir: Path) -> tuple[np.ndarray, np.ndarray]:
+    image = cv2.imread(str(media_dir / "images/dance_frame100.jpg"))
+    h, w = image.shape[:2]
+    return image, np.array([[0.15 * w, 0.05 * h, 0.85 * w, 0.98 * h]], np.float32)
+
+
+def test_the_roi_puts_the_hips_at_the_centre_and_the_head_straight_up() -> None:
+    hips, above_head = np.array([300.0, 200.0]), np.array([400.0, 200.0])  # a body lying to the right
+    m = roi_transform(hips, above_head, 256, scale=1.25)
+    crop = lambda p: m[:, :2] @ p + m[:, 2]  # noqa: E731
+    assert np.allclose(crop(hips), [128, 128])
+    assert np.allclose(crop(above_head), [128, 128 - 256 / 2.5])  # side = 2 x 100 x 1.25 = 250 px
+
+
+def test_an_upside_down_dancer_gets_the_same_skeleton(blazepose: BlazePose, dancer) -> None:
+    image, box = dancer
+    h, w = image.shape[:2]
+    upright = blazepose.estimate(image, box)
+    flipped = blazepose.estimate(cv2.rotate(image, cv2.ROTATE_180), np.array([[w - box[0, 2], h - box[0, 3],
+                                                                                w - box[0, 0], h - box[0, 1]]]))
+    back = np.column_stack([w - flipped.keypoints[0, :, 0], h - flipped.keypoints[0, :, 1]])
+    height = box[0, 3] - box[0, 1]
+    assert np.median(np.linalg.norm(back - upright.keypoints[0, :, :2], axis=1)) <= 0.03 * height
+    # Left stays left: after turning back, the left shoulder is where it was upright.
+    left, right = upright.keypoints[0, 5, :2], upright.keypoints[0, 6, :2]
+    assert np.linalg.norm(back[5] - left) < np.linalg.norm(back[5] - right)
+    # Without the orientation check (upright first crop only), the inverted dancer comes out wrong.
+    unchecked = BlazePose(blazepose.session, orientation_check=-np.inf)
+    one_pass = unchecked.estimate(cv2.rotate(image, cv2.ROTATE_180), np.array(
+        [[w - box[0, 2], h - box[0, 3], w - box[0, 0], h - box[0, 1]]]))
+    back1 = np.column_stack([w - one_pass.keypoints[0, :, 0], h - one_pass.keypoints[0, :, 1]])
+    assert np.median(np.linalg.norm(back1 - upright.keypoints[0, :, :2], axis=1)) > 2 * np.median(
+        np.linalg.norm(back - upright.keypoints[0, :, :2], axis=1))
+
+
+def test_world_landmarks_are_metric_and_turn_with_the_image(blazepose: BlazePose, dancer) -> None:
+    image, box = dancer
+    up = blazepose.estimate(image, box).world[0]
+    h, w = image.shape[:2]
+    down = blazepose.estimate(cv2.rotate(image, cv2.ROTATE_180), np.array(
+        [[w - box[0, 2], h - box[0, 3], w - box[0, 0], h - box[0, 1]]])).world[0]
+    shin = np.linalg.norm(up[25] - up[27])  # left knee to left ankle
+    assert 0.25 < shin < 0.6  # metres
+    assert up[0, 1] < up[27, 1]  # upright: the nose is above (smaller y than) the ankle
+    assert down[0, 1] > down[27, 1]  # the image turned: so do the world landmarks' x, y
+
+
+def test_feet_hang_from_the_body_models_ankles(models_dir: Path, blazepose: BlazePose, dancer) -> None:
+    image, box = dancer
+    body = TinyPose(create_session(models_dir / "tinypose_256x192.onnx"))
+    both = BodyAndFeet(body, blazepose).estimate(image, box)
+    assert np.array_equal(both.keypoints, body.estimate(image, box).keypoints)
+    height = box[0, 3] - box[0, 1]
+    for foot, ankle in ((0, 15), (1, 16), (2, 15), (3, 16)):  # heels, then toes
+        assert both.feet[0, foot, 2] > 0.5
+        assert np.linalg.norm(both.feet[0, foot, :2] - both.keypoints[0, ankle, :2]) < 0.12 * height
+    assert both.world is not None and both.world.shape == (1, 33, 3)
