@@ -23,6 +23,8 @@ from pipeline.ingest.media import ffmpeg_exe, iter_frames
 # COCO-17 limbs, drawn between keypoint pairs.
 SKELETON = ((15, 13), (13, 11), (16, 14), (14, 12), (11, 12), (5, 11), (6, 12), (5, 6), (5, 7), (6, 8),
             (7, 9), (8, 10), (1, 2), (0, 1), (0, 2), (1, 3), (2, 4), (3, 5), (4, 6))
+# Feet, when the pose data has them: keypoints 17-20 = left heel, right heel, left toe, right toe.
+FOOT_BONES = ((15, 17), (15, 19), (17, 19), (16, 18), (16, 20), (18, 20))
 UNTRACKED_COLOUR = (160, 160, 160)
 
 
@@ -36,7 +38,7 @@ def id_colour(track_id: int) -> tuple[int, int, int]:
 
 
 def draw_frame(image: np.ndarray, frame: int, time: float, people: list[tuple], kp_min_score: float) -> np.ndarray:
-    """Draw ``people`` = [(track_id, box[4], keypoints[17x3]), ...] and the frame/timecode banner."""
+    """Draw ``people`` = [(track_id, box[4], keypoints[17x3] or [21x3] with the feet), ...] and the banner."""
     h, w = image.shape[:2]
     unit = max(h, w) / 720.0
     thick = max(1, int(round(2 * unit)))
@@ -44,7 +46,7 @@ def draw_frame(image: np.ndarray, frame: int, time: float, people: list[tuple], 
         colour = id_colour(track_id)
         x1, y1, x2, y2 = (int(round(v)) for v in box)
         cv2.rectangle(image, (x1, y1), (x2, y2), colour, thick if track_id >= 0 else 1, cv2.LINE_AA)
-        for a, b in SKELETON:
+        for a, b in SKELETON + (FOOT_BONES if len(kps) > 17 else ()):
             if kps[a, 2] >= kp_min_score and kps[b, 2] >= kp_min_score:
                 cv2.line(image, (int(kps[a, 0]), int(kps[a, 1])), (int(kps[b, 0]), int(kps[b, 1])),
                          colour, thick, cv2.LINE_AA)
@@ -68,11 +70,14 @@ def draw_frame(image: np.ndarray, frame: int, time: float, people: list[tuple], 
 
 def render_qc(segment: Path, fps: float, frames: np.ndarray, track_ids: np.ndarray, boxes: np.ndarray,
               keypoints: np.ndarray, out: Path, *, has_audio: bool, kp_min_score: float = 0.2,
-              crf: int = 23, preset: str = "veryfast") -> None:
+              crf: int = 23, preset: str = "veryfast", feet: np.ndarray | None = None) -> None:
     """Write the QC video of ``segment`` with the given detections (one row per person per frame)."""
     by_frame: dict[int, list[tuple]] = defaultdict(list)
     for i in range(len(frames)):
-        by_frame[int(frames[i])].append((int(track_ids[i]), boxes[i], keypoints[i].reshape(17, 3)))
+        kps = keypoints[i].reshape(17, 3)
+        if feet is not None:
+            kps = np.vstack([kps, feet[i].reshape(4, 3)])
+        by_frame[int(frames[i])].append((int(track_ids[i]), boxes[i], kps))
     stream = iter_frames(segment)
     first = next(stream, None)
     if first is None:
