@@ -1,8 +1,9 @@
 """2D pose for a whole segment, streamed: decode, detect the top-k largest people, pose each.
 
-Decoding with the detector's preprocessing, the detector, and the pose model run in three
-threads joined by small bounded queues, so the two CPU cores overlap work on consecutive
-frames while memory stays constant in the video's length. With ``det_every = k > 1`` the
+Decoding with the detector's preprocessing, the detector, the body's pose model and the
+feet's (when it is a separate one) run in four threads joined by small bounded queues, so
+the two CPU cores overlap work on consecutive frames while memory stays constant in the
+video's length. With ``det_every = k > 1`` the
 detector runs on every k-th frame; in between each person's box is carried over from
 their keypoints in the previous frame.
 
@@ -204,29 +205,41 @@ def estimate_segment(path: Path, fps: float, detector, pose, opts: Pose2dOptions
             dets = detector.infer(box) if box is not None else None
             yield number, time, image, dets
 
-    try:
-        stream = _threaded(detected(_threaded(decoded(), opts.queue_size, stop)), opts.queue_size, stop)
-        previous: FramePoses | None = None
-        for number, time, image, dets in stream:
+    # With a separate feet model, the body (and who is a person) and the feet run in different
+    # threads, so the two models overlap on consecutive frames.
+    feet_model = pose if isinstance(pose, BodyAndFeet) else None
+    body_model = pose.body if feet_model else pose
+
+    def people(frames: Iterator[tuple]) -> Iterator[tuple]:
+        previous: Detections | None = None
+        keypoints = np.zeros((0, 17, 3), np.float32)
+        for number, time, image, dets in frames:
             was_detected = dets is not None
             if dets is None:
-                dets = _carry(previous, image, opts)
-                batch: PoseBatch = pose.estimate(image, dets.boxes)
+                dets = _carry(previous, keypoints, image, opts)
+                batch: PoseBatch = body_model.estimate(image, dets.boxes)
             else:
-                dets, batch = find_people(image, dets, pose, opts)
+                dets, batch = find_people(image, dets, body_model, opts)
+            previous, keypoints = dets, batch.keypoints
+            yield number, time, image, dets, batch, was_detected
+
+    try:
+        q = opts.queue_size
+        stream = _threaded(people(_threaded(detected(_threaded(decoded(), q, stop)), q, stop)), q, stop)
+        for number, time, image, dets, batch, was_detected in stream:
+            if feet_model is not None:
+                batch = feet_model.complete(image, dets.boxes, batch)
             world = batch.world if batch.world is not None else np.full((len(batch), WORLD, 3), np.nan, np.float32)
-            result = FramePoses(number, time, dets.boxes, dets.scores, batch.keypoints, was_detected, batch.feet, world)
-            previous = result
-            yield result
+            yield FramePoses(number, time, dets.boxes, dets.scores, batch.keypoints, was_detected, batch.feet, world)
     finally:
         stop.set()
 
 
-def _carry(previous: FramePoses | None, image: np.ndarray, opts: Pose2dOptions) -> Detections:
+def _carry(previous: Detections | None, keypoints: np.ndarray, image: np.ndarray, opts: Pose2dOptions) -> Detections:
     if previous is None or not len(previous.scores):
         return Detections(np.zeros((0, 4), np.float32), np.zeros(0, np.float32))
     h, w = image.shape[:2]
-    boxes = carried_boxes(previous.keypoints, w, h, opts.carry_min_score, opts.carry_margin)
+    boxes = carried_boxes(keypoints, w, h, opts.carry_min_score, opts.carry_margin)
     keep = ~np.isnan(boxes[:, 0])
     return Detections(boxes[keep], previous.scores[keep])
 
