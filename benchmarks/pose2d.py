@@ -1,12 +1,14 @@
-"""Benchmark for the 2D stage (issue: 2D pose).
+"""Benchmark for the 2D stage with the configured models (params.yaml's pose2d section).
 
-Measures, side by side in one run on the shared dance clip (median of --runs):
-  (a) the pose2d + track work of the stages: streamed decode, detection, pose, tracking
-  (b) a naive loop: decode a frame, detect, one pose call per crop, single thread, no overlap
-  (c) pure model time: the same ONNX calls on inputs decoded and preprocessed beforehand
+Measures, side by side in one run (median of --runs), on a one-dancer clip and on a
+five-person clip (two dancers above three seated musicians, built from the shared media):
+  (a) the pose2d + track work of the stages: streamed decode, detection, people, pose, tracking
+  (b) a naive loop: decode a frame, detect, choose people, pose each, single thread, no overlap
+  (c) pure model time: the time spent inside ONNX Runtime's ``run`` during (b)
 and the peak RSS of the pose2d+track work on a 10 s and a 60 s input (the clip looped).
 
 Usage: DANCE3D_MODELS=../shared/models DANCE3D_MEDIA=../shared/media python benchmarks/pose2d.py
+       [--pose-model movenet-lightning --detector rtmdet-nano-person] (another configuration)
 """
 
 from __future__ import annotations
@@ -21,59 +23,79 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from pipeline.core.params import load_params, stage_params  # noqa: E402
 from pipeline.ingest.media import ffmpeg_exe, iter_frames, probe  # noqa: E402
-from pipeline.pose.models.detector import RTMDetDetector, largest  # noqa: E402
-from pipeline.pose.models.pose import MoveNetPose, crop_transform, warp  # noqa: E402
-from pipeline.pose.models.session import create_session  # noqa: E402
-from pipeline.pose.pose2d import Pose2dOptions, collect_poses, estimate_segment  # noqa: E402
+from pipeline.pose.pose2d import (  # noqa: E402
+    Pose2dOptions,
+    collect_poses,
+    estimate_segment,
+    find_people,
+    lift_dark,
+    load_pose_models,
+    model_files,
+)
 from pipeline.pose.tracking import assign_tracks  # noqa: E402
 
-
-def load_models(models: Path):
-    det = RTMDetDetector(create_session(models / "rtmdet_nano_person_end2end.onnx", 1))
-    pose = MoveNetPose(create_session(models / "movenet_singlepose_lightning_4_dequant.onnx", 1))
-    return det, pose
+ROOT = Path(__file__).resolve().parents[1]
 
 
-def stage_work(clip: Path, fps: float, det, pose) -> int:
-    poses, frames = collect_poses(estimate_segment(clip, fps, det, pose, Pose2dOptions()))
+class TimedSession:
+    """An ONNX Runtime session that adds the time of every ``run`` to a shared counter."""
+
+    def __init__(self, session, counter: list[float]) -> None:
+        self._session, self._counter = session, counter
+
+    def run(self, *args, **kwargs):
+        t0 = time.perf_counter()
+        try:
+            return self._session.run(*args, **kwargs)
+        finally:
+            self._counter[0] += time.perf_counter() - t0
+
+    def __getattr__(self, name):
+        return getattr(self._session, name)
+
+
+def _wrap_sessions(obj, counter: list[float], seen: set | None = None) -> None:
+    seen = seen if seen is not None else set()
+    if id(obj) in seen or not hasattr(obj, "__dict__"):
+        return
+    seen.add(id(obj))
+    for key, value in vars(obj).items():
+        if type(value).__name__ == "InferenceSession":
+            setattr(obj, key, TimedSession(value, counter))
+        elif isinstance(value, list):
+            for item in value:
+                _wrap_sessions(item, counter, seen)
+        else:
+            _wrap_sessions(value, counter, seen)
+
+
+def configured(overrides: dict) -> tuple[dict, Pose2dOptions]:
+    params = {**stage_params(load_params(ROOT / "params.yaml"), "pose2d"), **overrides}
+    return params, Pose2dOptions.from_params(params)
+
+
+def load_models(params: dict):
+    files, _ = model_files(ROOT, params)
+    return load_pose_models(files)
+
+
+def stage_work(clip: Path, fps: float, models, opts: Pose2dOptions) -> int:
+    poses, frames = collect_poses(estimate_segment(clip, fps, models.detector, models.pose, opts))
     assign_tracks(poses.frame, poses.box, poses.keypoints)
     return frames
 
 
-def naive_loop(clip: Path, det, pose) -> int:
+def naive_loop(clip: Path, models, opts: Pose2dOptions) -> int:
     n = 0
     for frame in iter_frames(clip):
-        dets = largest(det.detect(frame.image), 5)
-        for box in dets.boxes:
-            pose.estimate(frame.image, box[None])
+        image = lift_dark(frame.image, opts.dark_mean)
+        find_people(image, models.detector.detect(image), models.pose, opts)
         n += 1
     return n
-
-
-def predecode(clip: Path, det, pose) -> list:
-    inputs = []
-    for frame in iter_frames(clip):
-        box = det.preprocess(frame.image)
-        dets = largest(det.infer(box), 5)
-        crops = []
-        for b in dets.boxes:
-            m = crop_transform(b, 192, 192, 1.25)
-            crops.append(np.ascontiguousarray(warp(frame.image, m, 192, 192)[:, :, ::-1])[None])
-        inputs.append((box.tensor, crops))
-    return inputs
-
-
-def model_only(inputs: list, det, pose) -> int:
-    for tensor, crops in inputs:
-        det.session.run([det.output_name], {det.input_name: tensor})
-        for crop in crops:
-            pose.session.run(None, {pose.input_name: crop})
-    return len(inputs)
 
 
 def timed(fn, *args) -> tuple[float, int]:
@@ -82,53 +104,71 @@ def timed(fn, *args) -> tuple[float, int]:
     return time.perf_counter() - t0, n
 
 
-def peak_rss_child(clip: Path, fps: float, models: Path) -> float:
+def peak_rss_child(clip: Path, fps: float, overrides: dict) -> float:
     """Peak RSS (MiB) of a fresh process doing the pose2d+track work on ``clip``."""
-    code = ("import resource,sys;from pathlib import Path;sys.path.insert(0,%r);"
-            "from benchmarks.pose2d import load_models,stage_work;"
-            "d,p=load_models(Path(%r));stage_work(Path(%r),%r,d,p);"
+    code = ("import resource,sys,json;from pathlib import Path;sys.path.insert(0,%r);"
+            "from benchmarks.pose2d import configured,load_models,stage_work;"
+            "p,o=configured(json.loads(%r));stage_work(Path(%r),%r,load_models(p),o);"
             "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)") % (
-        str(Path(__file__).resolve().parents[1]), str(models), str(clip), fps)
+        str(ROOT), json.dumps(overrides), str(clip), fps)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     return int(out.strip().splitlines()[-1]) / 1024
+
+
+def five_people(media: Path, out: Path, seconds: float = 10) -> Path:
+    """Two dancers side by side above the raga trio (the composite of the 2D issue)."""
+    videos = media / "videos"
+    subprocess.run([ffmpeg_exe(), "-loglevel", "error", "-y", "-stream_loop", "-1",
+                    "-i", str(videos / "dance_solo_384x496_30fps.mp4"),
+                    "-i", str(videos / "musicians_trio_music_raga.mp4"),
+                    "-filter_complex", "[0:v]fps=25,scale=355:560,split[a][b];[b]hflip[c];[a][c]hstack[top];"
+                    "[1:v]fps=25,scale=-2:280,pad=710:280:(ow-iw)/2:0[bot];[top][bot]vstack,format=yuv420p[v]",
+                    "-map", "[v]", "-t", str(seconds), "-c:v", "libx264", "-preset", "ultrafast", str(out)], check=True)
+    return out
+
+
+def measure(clip: Path, models, opts: Pose2dOptions, runs: int) -> dict:
+    info = probe(clip)
+    counter = [0.0]
+    _wrap_sessions(models, counter)
+    stage_work(clip, info.fps, models, opts)  # warm up
+    a, b, c = [], [], []
+    for _ in range(runs):  # interleaved, so machine noise hits all three alike
+        a.append(timed(stage_work, clip, info.fps, models, opts)[0])
+        counter[0] = 0.0
+        b.append(timed(naive_loop, clip, models, opts)[0])
+        c.append(counter[0])
+    ma, mb, mc = statistics.median(a), statistics.median(b), statistics.median(c)
+    return {"clip": f"{clip.name} ({info.width}x{info.height}, {info.frames} frames)",
+            "a_stage_fps": round(info.frames / ma, 1), "b_naive_fps": round(info.frames / mb, 1),
+            "c_model_only_fps": round(info.frames / mc, 1), "a_over_b_speed": round(mb / ma, 2),
+            "a_wall_over_c_model_time": round(ma / mc, 2)}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--runs", type=int, default=5)
+    parser.add_argument("--detector", default=None)
+    parser.add_argument("--pose-model", default=None)
     args = parser.parse_args()
-    models = Path(os.environ["DANCE3D_MODELS"])
-    clip = Path(os.environ["DANCE3D_MEDIA"]) / "videos/dance_single_music_musepose.mp4"
-    info = probe(clip)
-    det, pose = load_models(models)
-    inputs = predecode(clip, det, pose)
-    stage_work(clip, info.fps, det, pose)  # warm up
-    a, b, c = [], [], []
-    for _ in range(args.runs):  # interleaved, so machine noise hits all three alike
-        a.append(timed(stage_work, clip, info.fps, det, pose)[0])
-        b.append(timed(naive_loop, clip, det, pose)[0])
-        c.append(timed(model_only, inputs, det, pose)[0])
-    frames = info.frames
-    ma, mb, mc = statistics.median(a), statistics.median(b), statistics.median(c)
+    overrides = {k: v for k, v in (("detector", args.detector), ("pose_model", args.pose_model)) if v}
+    params, opts = configured(overrides)
+    media = Path(os.environ["DANCE3D_MEDIA"])
+    one = media / "videos/dance_single_music_musepose.mp4"
+    report = {"detector": params["detector"], "pose_model": params["pose_model"], "runs": args.runs}
     with tempfile.TemporaryDirectory() as tmp:
+        five = five_people(media, Path(tmp) / "five_people.mp4", seconds=4)
+        report["one_dancer"] = measure(one, load_models(params), opts, args.runs)
+        report["five_people"] = measure(five, load_models(params), opts, args.runs)
         short, long_ = Path(tmp) / "10s.mp4", Path(tmp) / "60s.mp4"
         for out, seconds in ((short, 10), (long_, 60)):
-            subprocess.run([ffmpeg_exe(), "-loglevel", "error", "-y", "-stream_loop", "5", "-i", str(clip),
+            subprocess.run([ffmpeg_exe(), "-loglevel", "error", "-y", "-stream_loop", "5", "-i", str(one),
                             "-t", str(seconds), "-an", "-c:v", "libx264", "-preset", "ultrafast", str(out)], check=True)
-        rss10 = statistics.median(peak_rss_child(short, info.fps, models) for _ in range(3))
-        rss60 = statistics.median(peak_rss_child(long_, info.fps, models) for _ in range(3))
-    report = {
-        "clip": f"{clip.name} ({info.width}x{info.height}, {frames} frames)",
-        "runs": args.runs,
-        "a_stage_fps": round(frames / ma, 1),
-        "b_naive_fps": round(frames / mb, 1),
-        "c_model_only_fps": round(frames / mc, 1),
-        "a_over_b_speed": round(mb / ma, 2),
-        "a_wall_over_c_wall": round(ma / mc, 2),
-        "peak_rss_10s_mib": round(rss10, 1),
-        "peak_rss_60s_mib": round(rss60, 1),
-        "rss_ratio_60s_over_10s": round(rss60 / rss10, 3),
-    }
+        fps = probe(one).fps
+        rss10 = statistics.median(peak_rss_child(short, fps, overrides) for _ in range(3))
+        rss60 = statistics.median(peak_rss_child(long_, fps, overrides) for _ in range(3))
+    report.update(peak_rss_10s_mib=round(rss10, 1), peak_rss_60s_mib=round(rss60, 1),
+                  rss_ratio_60s_over_10s=round(rss60 / rss10, 3))
     print(json.dumps(report, indent=2))
 
 
