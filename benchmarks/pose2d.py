@@ -5,7 +5,8 @@ five-person clip (two dancers above three seated musicians, built from the share
   (a) the pose2d + track work of the stages: streamed decode, detection, people, pose, tracking
   (b) a naive loop: decode a frame, detect, choose people, pose each, single thread, no overlap
   (c) pure model time: the time spent inside ONNX Runtime's ``run`` during (b)
-and the peak RSS of the pose2d+track work on a 10 s and a 60 s input (the clip looped).
+and the peak RSS of the pose2d+track work on a short and a long input (the clip looped;
+--short / --long seconds, 10 and 60 by default).
 
 Usage: DANCE3D_MODELS=../shared/models DANCE3D_MEDIA=../shared/media python benchmarks/pose2d.py
        [--pose-model movenet-lightning --detector rtmdet-nano-person] (another configuration)
@@ -150,6 +151,9 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--detector", default=None)
     parser.add_argument("--pose-model", default=None)
+    parser.add_argument("--short", type=float, default=10, help="seconds of the short memory run")
+    parser.add_argument("--long", type=float, default=60, help="seconds of the long memory run")
+    parser.add_argument("--rss-runs", type=int, default=3, help="memory runs per length (median)")
     args = parser.parse_args()
     overrides = {k: v for k, v in (("detector", args.detector), ("pose_model", args.pose_model)) if v}
     params, opts = configured(overrides)
@@ -160,15 +164,15 @@ def main() -> None:
         five = five_people(media, Path(tmp) / "five_people.mp4", seconds=4)
         report["one_dancer"] = measure(one, load_models(params), opts, args.runs)
         report["five_people"] = measure(five, load_models(params), opts, args.runs)
-        short, long_ = Path(tmp) / "10s.mp4", Path(tmp) / "60s.mp4"
-        for out, seconds in ((short, 10), (long_, 60)):
+        short, long_ = Path(tmp) / "short.mp4", Path(tmp) / "long.mp4"
+        for out, seconds in ((short, args.short), (long_, args.long)):
             subprocess.run([ffmpeg_exe(), "-loglevel", "error", "-y", "-stream_loop", "5", "-i", str(one),
                             "-t", str(seconds), "-an", "-c:v", "libx264", "-preset", "ultrafast", str(out)], check=True)
         fps = probe(one).fps
-        rss10 = statistics.median(peak_rss_child(short, fps, overrides) for _ in range(3))
-        rss60 = statistics.median(peak_rss_child(long_, fps, overrides) for _ in range(3))
-    report.update(peak_rss_10s_mib=round(rss10, 1), peak_rss_60s_mib=round(rss60, 1),
-                  rss_ratio_60s_over_10s=round(rss60 / rss10, 3))
+        rss10 = statistics.median(peak_rss_child(short, fps, overrides) for _ in range(args.rss_runs))
+        rss60 = statistics.median(peak_rss_child(long_, fps, overrides) for _ in range(args.rss_runs))
+    report.update({f"peak_rss_{args.short:g}s_mib": round(rss10, 1), f"peak_rss_{args.long:g}s_mib": round(rss60, 1),
+                   "rss_ratio_long_over_short": round(rss60 / rss10, 3)})
     print(json.dumps(report, indent=2))
 
 
