@@ -178,14 +178,14 @@ def test_reseeding_never_overwrites_an_edited_manifest(seg: Path) -> None:
 
 @pytest.fixture
 def dancers_and_seated_group(tmp_path: Path, media_dir: Path) -> Path:
-    """Two real dancers side by side above three seated musicians (static), 6 s, built with ffmpeg."""
+    """Two real dancers side by side above three seated musicians (static), 8 s, built with ffmpeg."""
     out = tmp_path / "stage.mp4"
     videos = media_dir / "videos"
     ffmpeg("-i", str(videos / "dance_single_music_musepose.mp4"), "-i", str(videos / "dance_solo_384x496_30fps.mp4"),
            "-i", str(videos / "musicians_trio_music_raga.mp4"), "-filter_complex",
            "[0:v]fps=24,scale=-2:496[a];[1:v]fps=24[b];[a][b]hstack=inputs=2[top];"
            "[2:v]fps=24,scale=664:-2[c];[top][c]vstack=inputs=2[v]",
-           "-map", "[v]", "-map", "0:a", "-t", "6", "-c:v", "libx264", "-preset", "ultrafast", "-c:a", "aac", str(out))
+           "-map", "[v]", "-map", "0:a", "-t", "8", "-c:v", "libx264", "-preset", "ultrafast", "-c:a", "aac", str(out))
     return out
 
 
