@@ -342,9 +342,9 @@ class BodyAndFeet:
         size = self.feet.size
         # Without confident hips and shoulders (seated, cropped), one upright pass on the box: the
         # feet are rarely visible then, and the orientation search would cost four more passes.
-        rois = [body_roi(kp, size) if body_roi(kp, size) is not None else crop_transform(box, size, size,
-                                                                                            self.feet.padding)
-                for kp, box in zip(body.keypoints, boxes)]
+        rois = [body_roi(kp, size) for kp in body.keypoints]
+        rois = [roi if roi is not None else crop_transform(box, size, size, self.feet.padding)
+                for roi, box in zip(rois, boxes)]
         feet = self.feet.estimate_in_rois(image, rois, boxes)
         moved = feet.feet.copy()
         for side, ankle in ((0, 15), (1, 16)):  # FEET: left heel, right heel, left toe, right toe
