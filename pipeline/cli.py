@@ -61,6 +61,12 @@ def _parser() -> argparse.ArgumentParser:
                                        "others as they are (for download and trim, whose finished items are "
                                        "always kept, this is a plain re-run).")
     retry.add_argument("stage", choices=sorted(FAILURE_DIRS))
+    qc = sub.add_parser("qc", help="render a segment's QC video (boxes, skeletons, track ids, timecodes)",
+                        description="Render data/qc/<segment_id>.mp4 from the segment's tracks, read straight from "
+                                    "its downloaded video (with audio), and print its path. A QC video newer than "
+                                    "its tracks is kept. The review page does the same on first request; set "
+                                    "track.qc_videos: true to have the track stage render every segment's.")
+    qc.add_argument("segments", nargs="+", help="segment ids (see data/segments/index.parquet or `dance3d status`)")
     sub.add_parser("status", help="summarise downloads, segments and failures",
                    description="Summarise the download ledger, the segment index and every stage's failures.")
     manifests = sub.add_parser("manifests", help="track manifests for annotators (seed, check)",
@@ -249,12 +255,29 @@ def main(argv: list[str] | None = None) -> int:
         return _review(root, args)
     if args.command == "retry":
         return _retry(root, args.stage)
+    if args.command == "qc":
+        return _qc(root, args)
     if args.command == "status":
         from pipeline.status import summarise
 
         print(summarise(root))
         return 0
     return 1
+
+
+def _qc(root: Path, args: argparse.Namespace) -> int:
+    from pipeline.core.params import load_params, stage_params
+    from pipeline.pose.qc import qc_video
+
+    kp_min_score = float(stage_params(load_params(root / "params.yaml"), "track").get("kp_min_score", 0.2))
+    failed = 0
+    for segment_id in args.segments:
+        try:
+            print(qc_video(root, segment_id, kp_min_score=kp_min_score).relative_to(root))
+        except Dance3dError as exc:
+            print(f"dance3d: {exc}", file=sys.stderr)
+            failed += 1
+    return 2 if failed else 0
 
 
 def _review(root: Path, args: argparse.Namespace) -> int:
@@ -330,7 +353,7 @@ def _sample(root: Path, args: argparse.Namespace) -> int:
 
 
 def _render(root: Path, args: argparse.Namespace) -> int:
-    from pipeline.core.paths import SEGMENTS
+    from pipeline.core.paths import AUDIO
     from pipeline.core.storage import read_meta
     from pipeline.motion.motionfile import read_clips
     from pipeline.motion.render3d import render_clip
@@ -342,7 +365,7 @@ def _render(root: Path, args: argparse.Namespace) -> int:
     clip = clips[args.clip_id]
     meta = read_meta(args.motion)
     fps = float(meta.get("fps", 24.0))
-    audio = root / SEGMENTS / f"{meta.get('segment_id', '')}.wav"
+    audio = root / AUDIO / f"{meta.get('segment_id', '')}.flac"  # the segment's normalised audio
     render_clip(clip.joints, clip.time, fps, args.out, audio=audio, title=args.clip_id)
     print(f"wrote {args.out}")
     return 0

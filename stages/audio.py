@@ -1,5 +1,6 @@
-"""audio stage: data/segments -> data/audio/<segment_id>.wav (44.1 kHz, EBU R128) and
-data/audio_features/<segment_id>.parquet (24 fps on the segment clock; see pipeline/music/audio.py).
+"""audio stage: data/segments (audio read from data/raw) -> data/audio/<segment_id>.flac (44.1 kHz,
+EBU R128, lossless) and data/audio_features/<segment_id>.parquet (24 fps on the segment clock;
+see pipeline/music/audio.py).
 Segments without an audio track are listed in metrics/audio.json and left out downstream."""
 
 from __future__ import annotations
@@ -12,10 +13,11 @@ import pipeline.music.audio
 import pipeline.music.featurefile
 from pipeline.core.itemstage import WorkItem, run_item_stage
 from pipeline.core.params import corpus_fps, load_params, stage_params
-from pipeline.core.paths import AUDIO, AUDIO_FEATURES, METRICS, SEGMENTS
+from pipeline.core.paths import AUDIO, AUDIO_FEATURES, METRICS, RAW, SEGMENTS
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta, write_json
 from pipeline.ingest.catalog import read_index
+from pipeline.ingest.segmentvideo import SegmentVideo
 from pipeline.music.audio import AudioJob, LoudnessOptions, audio_segment
 from pipeline.music.featurefile import SCHEMA_VERSION
 
@@ -32,17 +34,19 @@ def run(root: Path) -> None:
     extra_sets = list(params.get("extra_features") or [])
     items, silent = [], []
     for seg_id, seg in read_index(root / SEGMENTS).items():
-        if not seg["has_audio"] or not seg["wav_path"]:
+        if not seg["has_audio"]:
             silent.append(seg_id)
             continue
         inputs = {"segment": seg["fingerprint"]}
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
-        out_wav, out_features = root / AUDIO / f"{seg_id}.wav", root / AUDIO_FEATURES / f"{seg_id}.parquet"
-        job = AudioJob(root / SEGMENTS / seg["wav_path"], out_wav, out_features, opts, tuple(extra_sets),
+        out_audio, out_features = root / AUDIO / f"{seg_id}.flac", root / AUDIO_FEATURES / f"{seg_id}.parquet"
+        job = AudioJob(SegmentVideo.from_index(root / RAW, seg), out_audio, out_features, opts, tuple(extra_sets),
                        params["fps"], params, inputs, fp)
-        items.append(WorkItem(seg_id, fp, (out_features, out_wav), job))
+        items.append(WorkItem(seg_id, fp, (out_features, out_audio), job))
     if silent:
         log.info("%d segments have no audio track and are left out downstream: %s", len(silent), ", ".join(silent))
+    for old in (root / AUDIO).glob("*.wav") if (root / AUDIO).exists() else ():
+        old.unlink()  # before audio was stored as FLAC
     run_item_stage("audio", items, audio_segment, out_dirs=[root / AUDIO_FEATURES, root / AUDIO], params=params)
     loudness = {}
     for path in item_files(root / AUDIO_FEATURES):

@@ -13,16 +13,18 @@ import pipeline.pose.pose2d
 import pipeline.pose.pose2dfile
 from pipeline.core.itemstage import WorkItem, run_item_stage
 from pipeline.core.params import load_params, stage_params
-from pipeline.core.paths import POSE2D, SEGMENTS
+from pipeline.core.paths import POSE2D, RAW, SEGMENTS
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint
 from pipeline.ingest.catalog import read_index
+from pipeline.ingest.segmentvideo import SegmentVideo
 from pipeline.pose.pose2d import Pose2dJob, Pose2dOptions, load_pose_models, model_files, pose_segment
 from pipeline.pose.pose2dfile import SCHEMA_VERSION, SegmentInfo
 
 log = logging.getLogger("dance3d.pose2d")
 CODE = code_fingerprint(pipeline.pose.pose2d, pipeline.pose.pose2dfile, pipeline.pose.models.detector,
-                        pipeline.pose.models.pose, pipeline.ingest.media)
+                        pipeline.pose.models.pose, pipeline.ingest.media,
+                        pipeline.ingest.segmentvideo)
 
 
 def run(root: Path) -> None:
@@ -35,7 +37,7 @@ def run(root: Path) -> None:
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out = root / POSE2D / f"{seg['segment_id']}.parquet"
         segment = SegmentInfo(seg["segment_id"], seg["fps"], int(seg["frames"]), seg["width"], seg["height"])
-        job = Pose2dJob(root / SEGMENTS / seg["path"], out, segment, opts, params, inputs, fp)
+        job = Pose2dJob(SegmentVideo.from_index(root / RAW, seg), out, segment, opts, params, inputs, fp)
         items.append(WorkItem(seg["segment_id"], fp, (out,), job))
     report = run_item_stage("pose2d", items, pose_segment, out_dirs=[root / POSE2D], params=params,
                             setup=load_pose_models, setup_args=(files,), gpu=True)

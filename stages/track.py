@@ -1,4 +1,7 @@
-"""track stage: data/pose2d -> data/tracks/<segment_id>.parquet (+ track_id), data/qc/<segment_id>.mp4."""
+"""track stage: data/pose2d -> data/tracks/<segment_id>.parquet (+ track_id).
+
+data/qc/<segment_id>.mp4 only with track.qc_videos: QC videos are otherwise made on request
+(the review page, `dance3d qc`)."""
 
 from __future__ import annotations
 
@@ -11,10 +14,11 @@ import pipeline.pose.trackfile
 import pipeline.pose.tracking
 from pipeline.core.itemstage import WorkItem, run_item_stage
 from pipeline.core.params import load_params, stage_params
-from pipeline.core.paths import POSE2D, QC, SEGMENTS, TRACKS
+from pipeline.core.paths import POSE2D, QC, RAW, SEGMENTS, TRACKS
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint, read_meta
 from pipeline.ingest.catalog import read_index
+from pipeline.ingest.segmentvideo import SegmentVideo
 from pipeline.pose.trackfile import SCHEMA_VERSION
 from pipeline.pose.tracking import TrackerOptions, TrackJob, track_segment
 
@@ -24,7 +28,7 @@ CODE = code_fingerprint(pipeline.pose.tracking, pipeline.pose.qc, pipeline.pose.
 def run(root: Path) -> None:
     params = stage_params(load_params(root / "params.yaml"), "track")
     opts = TrackerOptions(**{k: params[k] for k in asdict(TrackerOptions()) if k in params})
-    qc_enabled = bool(params.get("qc_videos", True))
+    qc_enabled = bool(params.get("qc_videos", False))  # else made on request (review page, `dance3d qc`)
     items = []
     for seg_id, seg in read_index(root / SEGMENTS).items():
         pose_file = root / POSE2D / f"{seg_id}.parquet"
@@ -33,9 +37,10 @@ def run(root: Path) -> None:
         fp = fingerprint(SCHEMA_VERSION, read_meta(pose_file).get("fingerprint"), params, CODE)
         out = root / TRACKS / f"{seg_id}.parquet"
         qc_out = root / QC / f"{seg_id}.mp4" if qc_enabled else None
-        job = TrackJob(pose_file, out, qc_out, root / SEGMENTS / seg["path"], bool(seg["has_audio"]), opts, params, fp)
+        job = TrackJob(pose_file, out, qc_out, SegmentVideo.from_index(root / RAW, seg), opts, params, fp)
         items.append(WorkItem(seg_id, fp, (out, qc_out) if qc_out else (out,), job))
-    run_item_stage("track", items, track_segment, out_dirs=[root / TRACKS, root / QC], params=params)
+    run_item_stage("track", items, track_segment, out_dirs=[root / TRACKS, *([root / QC] if qc_enabled else [])],
+                   params=params)
 
 
 def main() -> int:

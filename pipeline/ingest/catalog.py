@@ -13,7 +13,7 @@ from pipeline.core.storage import write_parquet
 LEDGER = "ledger.parquet"
 INDEX = "index.parquet"
 LEDGER_VERSION = 1
-INDEX_VERSION = 1
+INDEX_VERSION = 2  # 2: segments are views on data/raw (source, audio_stream), no files
 
 LEDGER_SCHEMA = pa.schema(
     [
@@ -31,8 +31,10 @@ INDEX_SCHEMA = pa.schema(
     [
         ("segment_id", pa.string()), ("video_id", pa.string()), ("start", pa.float64()), ("end", pa.float64()),
         ("fps", pa.float64()), ("fps_fraction", pa.string()), ("frames", pa.int32()),
-        ("width", pa.int32()), ("height", pa.int32()), ("has_audio", pa.bool_()), ("label", pa.string()),
-        ("path", pa.string()), ("wav_path", pa.string()), ("fingerprint", pa.string()),
+        ("width", pa.int32()), ("height", pa.int32()), ("has_audio", pa.bool_()), ("audio_stream", pa.int32()),
+        ("label", pa.string()),
+        ("source", pa.string()),  # the downloaded file in data/raw that the frames and audio are read from
+        ("fingerprint", pa.string()),
     ]
 )
 

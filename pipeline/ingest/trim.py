@@ -1,30 +1,30 @@
-"""Cut one dance segment out of a source video: frame-accurate, constant frame rate, with audio.
+"""Plan one dance segment of a source video: a frame-accurate, constant-rate view, not a copy.
 
-Frame k of a segment shows the source at ``start + k / fps`` (ffmpeg's accurate seek,
-then the ``fps`` filter on the seek-relative clock). The segment gets exactly
-``round((end - start) * fps)`` frames. Phone videos come out upright (ffmpeg autorotates
-when transcoding). Alongside the H.264/AAC mp4 (for QC and playback) the segment's audio
-is written losslessly as 16-bit PCM WAV at the source's sample rate, for the audio stage.
+Frame k of a segment shows the source at ``start + k / fps``; the segment has exactly
+``round((end - start) * fps)`` frames (fewer only when the source ends sooner), at the
+source's rate or ``trim.fps``, downscaled to ``trim.max_side``. Nothing is re-encoded: the
+index row says where the frames come from, and every later stage reads them from the
+downloaded file through ``SegmentVideo`` (pipeline/ingest/segmentvideo.py), audio included.
+Phone videos come out upright. Planning decodes the segment's first frame, so a source
+that cannot be read there fails here, naming the file, not in a later stage.
 """
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
 
-from pipeline.core.storage import atomic_path
-from pipeline.ingest.media import VideoInfo, probe, run_ffmpeg
+from pipeline.core.errors import MediaError
+from pipeline.ingest.media import VideoInfo, probe
 from pipeline.ingest.segments import SegmentSpec
+from pipeline.ingest.segmentvideo import SegmentVideo
 
 
 @dataclass(frozen=True)
 class TrimOptions:
     fps: str = "source"     # "source" or a rate like "30" / "30000/1001"
     max_side: int = 1280    # 0 keeps the size
-    crf: int = 18
-    preset: str = "veryfast"
 
 
 def segment_rate(opts: TrimOptions, video: VideoInfo) -> Fraction:
@@ -44,61 +44,50 @@ def output_size(width: int, height: int, max_side: int) -> tuple[int, int]:
     return even(width * scale), even(height * scale)
 
 
-def cut_segment(src: Path, video: VideoInfo, spec: SegmentSpec, mp4: Path, wav: Path | None,
-                opts: TrimOptions) -> dict:
-    """Write ``mp4`` (and ``wav`` when the video has audio and ``wav`` is given); return facts."""
+def segment_view(src: Path, video: VideoInfo, spec: SegmentSpec, opts: TrimOptions) -> SegmentVideo:
+    """The view of ``spec`` on ``src``: its clock, frame count and size."""
     rate = segment_rate(opts, video)
-    frames = int(round((spec.end - spec.start) * rate))
+    end = min(spec.end, video.duration) if video.duration > 0 else spec.end
+    frames = int(round((end - spec.start) * rate))
     if frames < 1:
         raise ValueError(f"segment {spec.segment_id} is shorter than one frame")
-    duration = frames / rate
     width, height = output_size(video.width, video.height, opts.max_side)
-    with_audio = video.has_audio and wav is not None
-    exact = ["-fflags", "+bitexact", "-flags:v", "+bitexact", "-flags:a", "+bitexact", "-map_metadata", "-1"]
-    with contextlib.ExitStack() as stack:
-        tmp_mp4 = stack.enter_context(atomic_path(mp4))
-        tmp_wav = stack.enter_context(atomic_path(wav)) if with_audio else None
-        args = ["-ss", f"{spec.start:.6f}", "-i", str(src), "-t", f"{float(duration):.6f}",
-                "-map", f"0:{video.video_stream}", *(["-map", f"0:{video.audio_stream}"] if video.has_audio else []),
-                "-vf", f"fps={rate.numerator}/{rate.denominator},scale={width}:{height}:flags=bicubic",
-                "-frames:v", str(frames), "-fps_mode", "cfr",
-                "-c:v", "libx264", "-preset", opts.preset, "-crf", str(opts.crf), "-pix_fmt", "yuv420p",
-                "-c:a", "aac", "-b:a", "192k", *exact, "-movflags", "+faststart", "-f", "mp4", str(tmp_mp4)]
-        if with_audio:
-            args += ["-map", f"0:{video.audio_stream}", "-t", f"{float(duration):.6f}", "-c:a", "pcm_s16le", *exact,
-                     "-f", "wav", str(tmp_wav)]
-        run_ffmpeg(args, subject=src)
-        cut = probe(tmp_mp4)
+    return SegmentVideo(Path(src), spec.start, rate, frames, width, height, video.has_audio, video.audio_stream)
+
+
+def plan_segment(src: Path, video: VideoInfo, spec: SegmentSpec, opts: TrimOptions) -> dict:
+    """The segment's row of the index, after checking that its first frame decodes."""
+    view = segment_view(src, video, spec, opts)
+    first = next(view.iter_frames(), None)
+    if first is None or first.image.shape[:2] != (view.height, view.width):
+        raise MediaError(src, f"cannot decode segment {spec.segment_id} at {spec.start:.3f} s")
     return {
         "segment_id": spec.segment_id,
         "video_id": spec.video_id,
         "start": spec.start,
-        "end": spec.start + float(duration),
-        "fps": float(rate),
-        "fps_fraction": f"{rate.numerator}/{rate.denominator}",
-        "frames": cut.frames,
-        "width": cut.width,
-        "height": cut.height,
-        "has_audio": with_audio,
+        "end": spec.start + view.duration,
+        "fps": float(view.rate),
+        "fps_fraction": f"{view.rate.numerator}/{view.rate.denominator}",
+        "frames": view.frames,
+        "width": view.width,
+        "height": view.height,
+        "has_audio": view.has_audio,
+        "audio_stream": view.audio_stream,
         "label": spec.label,
-        "path": mp4.name,
-        "wav_path": wav.name if with_audio else "",
+        "source": Path(src).name,
     }
 
 
 # --- the trim stage's worker -------------------------------------------------------------
 
 @dataclass(frozen=True)
-class CutJob:
+class PlanJob:
     source: Path
     spec: SegmentSpec
-    out_dir: Path
     opts: TrimOptions
     fingerprint: str
 
 
-def cut_job(job: CutJob) -> dict:
-    """Cut one segment; returns its row of the segment index."""
-    row = cut_segment(job.source, probe(job.source), job.spec, job.out_dir / f"{job.spec.segment_id}.mp4",
-                      job.out_dir / f"{job.spec.segment_id}.wav", job.opts)
-    return {**row, "fingerprint": job.fingerprint}
+def plan_job(job: PlanJob) -> dict:
+    """Plan one segment; returns its row of the segment index."""
+    return {**plan_segment(job.source, probe(job.source), job.spec, job.opts), "fingerprint": job.fingerprint}

@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Sequence
 
 import librosa
 import numpy as np
@@ -19,6 +20,7 @@ import numpy as np
 from pipeline.core.errors import MediaError
 from pipeline.core.storage import atomic_path
 from pipeline.ingest.media import ffmpeg_exe
+from pipeline.ingest.segmentvideo import SegmentVideo
 from pipeline.music.beats import BEAT_HOP, BEAT_SR, DOWNBEAT_METHOD, Beats, beat_flags, track_beats
 
 FPS = 24
@@ -52,26 +54,33 @@ class LoudnessReport:
         return {k: (round(v, 2) if isinstance(v, float) else v) for k, v in self.__dict__.items()}
 
 
-def normalise_loudness(src: Path, out: Path, opts: LoudnessOptions, audio_stream: int | None = None) -> LoudnessReport:
-    """EBU R128 two-pass *linear* normalisation with ffmpeg-normalize to 44.1 kHz 16-bit WAV.
+def normalise_loudness(src: Path, out: Path, opts: LoudnessOptions, audio_stream: int | None = None,
+                       input_options: Sequence[str] = ()) -> LoudnessReport:
+    """EBU R128 two-pass *linear* normalisation with ffmpeg-normalize to 44.1 kHz 16-bit audio:
+    FLAC when ``out`` ends in ``.flac`` (lossless, about half the size of WAV), else WAV.
 
     Linear on purpose: dynamic mode compresses the music, which changes onset strengths
     and therefore beats. A loudness range above ``opts.loudness_range`` is kept, and when
     the true-peak ceiling does not allow the full gain, the target is lowered (and the
     report says so) instead of compressing. ``audio_stream`` selects the stream
-    explicitly (files may carry cover art or several tracks).
+    explicitly (files may carry cover art or several tracks). ``input_options`` go before the
+    input in both passes (e.g. ``-ss``/``-t``: a segment of a longer file).
     """
     from ffmpeg_normalize import FFmpegNormalize
 
     os.environ["FFMPEG_PATH"] = ffmpeg_exe()  # ffmpeg-normalize finds the wheel's ffmpeg through this
+    codec, container = ("flac", "flac") if Path(out).suffix == ".flac" else ("pcm_s16le", "wav")
     with atomic_path(Path(out)) as tmp:
         normaliser = FFmpegNormalize(
             normalization_type="ebu", target_level=opts.target_lufs, true_peak=opts.true_peak,
             loudness_range_target=opts.loudness_range, keep_lra_above_loudness_range_target=True,
-            auto_lower_loudness_target=True, dynamic=False, sample_rate=OUTPUT_SR, audio_codec="pcm_s16le",
+            auto_lower_loudness_target=True, dynamic=False, sample_rate=OUTPUT_SR, audio_codec=codec,
             video_disable=True, subtitle_disable=True, metadata_disable=True, chapters_disable=True,
-            audio_streams=[audio_stream] if audio_stream is not None else None, output_format="wav",
-            extension="wav", keep_bit_depth=False)
+            audio_streams=[audio_stream] if audio_stream is not None else None, output_format=container,
+            extension=container, keep_bit_depth=False, extra_input_options=list(input_options) or None,
+            # FLAC: 16 bit as the WAV; a fixed block size, since loudnorm hands over frames longer
+            # than a FLAC block may be (88184 samples on the demo clip: "invalid block size").
+            extra_output_options=["-sample_fmt", "s16", "-frame_size", "4608"] if codec == "flac" else None)
         normaliser.add_media_file(str(src), str(tmp))
         try:
             normaliser.run_normalization()
@@ -178,8 +187,8 @@ def compute_features(y: np.ndarray, extra_sets: tuple[str, ...] = (), fps: float
 
 @dataclass(frozen=True)
 class AudioJob:
-    wav: Path            # the segment's lossless audio
-    out_wav: Path        # 44.1 kHz, EBU R128
+    segment: SegmentVideo  # the segment's audio is read from its source
+    out_audio: Path      # 44.1 kHz, EBU R128, FLAC
     out_features: Path
     loudness: LoudnessOptions
     extra_sets: tuple[str, ...]
@@ -192,9 +201,10 @@ class AudioJob:
 def audio_segment(job: AudioJob) -> dict:
     from pipeline.music.featurefile import features_table, write_features
 
-    loudness = normalise_loudness(job.wav, job.out_wav, job.loudness)
-    beats = track_beats(load_for_beats(job.out_wav), BEAT_SR)
-    f = compute_features(load_for_features(job.out_wav, job.fps), tuple(job.extra_sets), job.fps, beats)
+    seg = job.segment
+    loudness = normalise_loudness(seg.source, job.out_audio, job.loudness, seg.audio_stream, seg.audio_input()[:4])
+    beats = track_beats(load_for_beats(job.out_audio), BEAT_SR)
+    f = compute_features(load_for_features(job.out_audio, job.fps), tuple(job.extra_sets), job.fps, beats)
     meta = {"segment_id": job.out_features.stem, "fps": job.fps, "tempo": f.tempo, "loudness": loudness.as_dict(),
             "beat_times": [round(t, 6) for t in f.beat_times],
             "downbeat_times": [round(t, 6) for t in f.downbeat_times], "beats_per_bar": f.beats_per_bar,

@@ -23,7 +23,7 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
-from pipeline.ingest.media import iter_frames
+from pipeline.ingest.segmentvideo import SegmentVideo, frames_of
 from pipeline.pose.models.detector import Detections, FusedDetector, PicoDetDetector, RTMDetDetector, largest
 from pipeline.pose.models.pose import BlazePose, BodyAndFeet, MoveNetPose, PoseBatch, RTMPose, TinyPose
 from pipeline.pose.models.session import create_session
@@ -188,13 +188,14 @@ def carried_boxes(keypoints: np.ndarray, width: int, height: int, min_score: flo
     return boxes
 
 
-def estimate_segment(path: Path, fps: float, detector, pose, opts: Pose2dOptions) -> Iterator[FramePoses]:
-    """Yield the poses of every decoded frame of the segment at ``path``, in order."""
+def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opts: Pose2dOptions
+                     ) -> Iterator[FramePoses]:
+    """Yield the poses of every frame of ``video`` (a segment view or a video file), in order."""
     stop = threading.Event()
     every = max(1, int(opts.det_every))
 
     def decoded() -> Iterator[tuple]:
-        for frame in iter_frames(path):
+        for frame in frames_of(video):
             number = int(round(frame.time * fps))
             image = lift_dark(frame.image, opts.dark_mean)
             box: Any = detector.preprocess(image) if number % every == 0 else None  # None: carry over
@@ -335,7 +336,7 @@ def load_pose_models(files: ModelFiles) -> PoseModels:
 
 @dataclass(frozen=True)
 class Pose2dJob:
-    video: Path
+    video: SegmentVideo
     out: Path
     segment: SegmentInfo
     opts: Pose2dOptions

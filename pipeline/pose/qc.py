@@ -1,8 +1,11 @@
 """QC videos for annotators: boxes, skeletons and big id labels in stable per-id colours,
 the frame number and the timecode annotators type into manifests, and the segment's audio.
 
-Frames are decoded, drawn and piped to ffmpeg one at a time (H.264 yuv420p, faststart:
-plays in any browser); memory does not grow with the segment's length.
+Frames are read from the segment's view on its downloaded video, drawn and piped to ffmpeg
+one at a time (H.264 yuv420p, faststart: plays in any browser); memory does not grow with the
+segment's length. QC videos are for annotators, so they are made when someone asks: the review
+page and ``dance3d qc`` render a segment's on first request (``qc_video``), and the track stage
+renders them all only with ``track.qc_videos: true``.
 """
 
 from __future__ import annotations
@@ -18,7 +21,8 @@ import numpy as np
 from pipeline.core.errors import MediaError
 from pipeline.core.storage import atomic_path
 from pipeline.core.timecode import format_time
-from pipeline.ingest.media import ffmpeg_exe, iter_frames
+from pipeline.ingest.media import ffmpeg_exe
+from pipeline.ingest.segmentvideo import SegmentVideo
 
 # COCO-17 limbs, drawn between keypoint pairs.
 SKELETON = ((15, 13), (13, 11), (16, 14), (14, 12), (11, 12), (5, 11), (6, 12), (5, 6), (5, 7), (6, 8),
@@ -68,8 +72,8 @@ def draw_frame(image: np.ndarray, frame: int, time: float, people: list[tuple], 
     return image
 
 
-def render_qc(segment: Path, fps: float, frames: np.ndarray, track_ids: np.ndarray, boxes: np.ndarray,
-              keypoints: np.ndarray, out: Path, *, has_audio: bool, kp_min_score: float = 0.2,
+def render_qc(segment: SegmentVideo, fps: float, frames: np.ndarray, track_ids: np.ndarray, boxes: np.ndarray,
+              keypoints: np.ndarray, out: Path, *, kp_min_score: float = 0.2,
               crf: int = 23, preset: str = "veryfast", feet: np.ndarray | None = None) -> None:
     """Write the QC video of ``segment`` with the given detections (one row per person per frame)."""
     by_frame: dict[int, list[tuple]] = defaultdict(list)
@@ -78,16 +82,18 @@ def render_qc(segment: Path, fps: float, frames: np.ndarray, track_ids: np.ndarr
         if feet is not None:
             kps = np.vstack([kps, feet[i].reshape(4, 3)])
         by_frame[int(frames[i])].append((int(track_ids[i]), boxes[i], kps))
-    stream = iter_frames(segment)
+    stream = segment.iter_frames()
     first = next(stream, None)
     if first is None:
-        raise MediaError(segment, "segment has no frames to draw")
+        raise MediaError(segment.source, "segment has no frames to draw")
     h, w = first.image.shape[:2]
     with atomic_path(out) as tmp:
         cmd = [ffmpeg_exe(), "-hide_banner", "-nostdin", "-loglevel", "error", "-y",
                "-f", "rawvideo", "-pix_fmt", "bgr24", "-s", f"{w}x{h}", "-r", f"{fps:.6f}", "-i", "pipe:0"]
-        if has_audio:
-            cmd += ["-i", str(segment), "-map", "0:v:0", "-map", "1:a:0", "-c:a", "aac", "-b:a", "128k", "-shortest"]
+        if segment.has_audio:
+            audio = f"1:{segment.audio_stream}" if segment.audio_stream is not None else "1:a:0"
+            cmd += [*segment.audio_input(), "-map", "0:v:0", "-map", audio, "-c:a", "aac", "-b:a", "128k",
+                    "-shortest"]
         cmd += ["-c:v", "libx264", "-preset", preset, "-crf", str(crf), "-pix_fmt", "yuv420p",
                 "-fflags", "+bitexact", "-flags:v", "+bitexact", "-flags:a", "+bitexact", "-map_metadata", "-1",
                 "-movflags", "+faststart", "-f", "mp4", str(tmp)]
@@ -110,3 +116,24 @@ def render_qc(segment: Path, fps: float, frames: np.ndarray, track_ids: np.ndarr
 def _chain(first, rest):
     yield first
     yield from rest
+
+
+def qc_video(root: Path, segment_id: str, *, kp_min_score: float = 0.2) -> Path:
+    """``data/qc/<segment_id>.mp4``, rendered from the segment's tracks unless it is already newer than them."""
+    from pipeline.core.paths import QC, RAW, SEGMENTS, TRACKS
+    from pipeline.ingest.catalog import read_index
+    from pipeline.pose.trackfile import read_tracks
+
+    tracks_file = Path(root) / TRACKS / f"{segment_id}.parquet"
+    out = Path(root) / QC / f"{segment_id}.mp4"
+    if not tracks_file.exists():
+        raise MediaError(tracks_file, "no tracks for this segment (run the track stage first)")
+    if out.exists() and out.stat().st_mtime_ns >= tracks_file.stat().st_mtime_ns:
+        return out
+    row = read_index(Path(root) / SEGMENTS).get(segment_id)
+    if row is None:
+        raise MediaError(Path(root) / SEGMENTS, f"segment {segment_id} is not in the index")
+    tracks = read_tracks(tracks_file)
+    render_qc(SegmentVideo.from_index(Path(root) / RAW, row), tracks.fps, tracks.frame, tracks.track_id, tracks.box,
+              tracks.keypoints, out, kp_min_score=kp_min_score, feet=tracks.feet)
+    return out

@@ -18,6 +18,8 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from pipeline.ingest.segmentvideo import SegmentVideo
+
 # COCO keypoint sigmas (pycocotools), used by OKS.
 COCO_SIGMAS = np.array([0.26, 0.25, 0.25, 0.35, 0.35, 0.79, 0.79, 0.72, 0.72, 0.62, 0.62,
                         1.07, 1.07, 0.87, 0.87, 0.89, 0.89]) / 10.0
@@ -153,8 +155,7 @@ class TrackJob:
     pose2d: Path
     out: Path
     qc_out: Path | None   # None: no QC video
-    video: Path           # the segment, for the QC video
-    has_audio: bool
+    video: SegmentVideo   # the segment, for the QC video
     opts: TrackerOptions
     params: dict
     fingerprint: str
@@ -172,6 +173,6 @@ def track_segment(job: TrackJob) -> dict:
                  inputs={"pose2d": pose2d.fingerprint})
     if job.qc_out is not None:
         render_qc(job.video, pose2d.segment.fps, poses.frame, ids, poses.box, poses.keypoints, job.qc_out,
-                  has_audio=job.has_audio, kp_min_score=job.opts.kp_min_score, feet=poses.feet)
+                  kp_min_score=job.opts.kp_min_score, feet=poses.feet)
     real = ids[ids >= 0]
     return {"tracks": int(len(np.unique(real))), "untracked": int((ids < 0).sum())}

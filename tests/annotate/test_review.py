@@ -121,6 +121,25 @@ def test_qc_video_supports_range_requests(site) -> None:
     assert body == (root / "data/qc/vid_000.mp4").read_bytes()[100:200]
 
 
+def test_a_missing_qc_video_is_rendered_from_the_download_on_first_request(site) -> None:
+    from pipeline.ingest.catalog import write_index
+    from pipeline.ingest.media import probe
+
+    root, url = site
+    (root / "data/qc/vid_000.mp4").unlink()
+    (root / "data/raw").mkdir(parents=True)
+    make_test_video(root / "data/raw/vid.mp4", seconds=12, fps="24", size="1280x720")
+    write_index(root / "data/segments", [{
+        "segment_id": "vid_000", "video_id": "vid", "start": 1.0, "end": 11.0, "fps": 24.0, "fps_fraction": "24/1",
+        "frames": 240, "width": 640, "height": 360, "has_audio": True, "audio_stream": 1, "label": "",
+        "source": "vid.mp4", "fingerprint": "x"}], {})
+    status, body, headers = call(f"{url}/qc/vid_000.mp4")
+    assert status == 200 and headers["Content-Type"] == "video/mp4"
+    qc = probe(root / "data/qc/vid_000.mp4")
+    assert (qc.frames, qc.width, qc.height, qc.has_audio) == (240, 640, 360, True)
+    assert body == (root / "data/qc/vid_000.mp4").read_bytes()
+
+
 def _chromium():
     from selenium import webdriver
     from selenium.webdriver.chrome.service import Service

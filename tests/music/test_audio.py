@@ -77,6 +77,28 @@ def test_quiet_and_loud_clips_come_out_at_the_target_loudness(tmp_path: Path, me
     assert loudness(out) == pytest.approx(-23.0, abs=1.0)
 
 
+@pytest.mark.parametrize("clip, start", [("musicians_trio_music_raga.mp4", "6.0"),
+                                         ("dance_single_music_musepose.mp4", "1.0")])
+def test_a_segment_of_a_longer_file_is_measured_and_normalised_alone_into_flac(tmp_path: Path, media_dir: Path,
+                                                                            clip: str, start: str) -> None:
+    # 4 s read straight from the video: -ss/-t go before the input in both passes.
+    clip = media_dir / "videos" / clip
+    out = tmp_path / "norm.flac"
+    report = normalise_loudness(clip, out, LoudnessOptions(target_lufs=-23.0), audio_stream=1,
+                                input_options=["-ss", start, "-t", "4.0"])
+    info = sf.info(out)
+    assert (info.format, info.samplerate) == ("FLAC", 44100)
+    assert info.duration == pytest.approx(4.0, abs=0.03)
+    alone = tmp_path / "alone.wav"
+    ffmpeg("-ss", start, "-t", "4.0", "-i", str(clip), "-map", "0:a:0", "-c:a", "pcm_s16le", str(alone))
+    assert report.input_i == pytest.approx(ebur128(alone)["I"], abs=0.3)  # measured on the segment only
+    assert loudness(out) == pytest.approx(-23.0, abs=1.0)
+    wav = tmp_path / "norm.wav"
+    normalise_loudness(clip, wav, LoudnessOptions(target_lufs=-23.0), 1, ["-ss", start, "-t", "4.0"])
+    assert np.array_equal(sf.read(out)[0], sf.read(wav)[0])  # FLAC is lossless
+    assert out.stat().st_size < 0.75 * wav.stat().st_size
+
+
 def test_cover_art_stream_is_ignored(tmp_path: Path, media_dir: Path) -> None:
     out = tmp_path / "norm.wav"
     normalise_loudness(media_dir / "music/music_vibe_ace_kevin_macleod.ogg", out, LoudnessOptions(), audio_stream=0)

@@ -99,6 +99,10 @@ def test_two_dancers_side_by_side_give_exactly_two_long_tracks_that_never_swap(
     centres = (boxes[:, 0] + boxes[:, 2]) / 2
     sides = {t: set(np.where(centres[ids == t] < middle, "left", "right")) for t in long_tracks}
     assert sorted(map(tuple, sides.values())) == [("left",), ("right",)]  # each id stays on its side
+    assert not (project / "data/qc").exists()  # QC videos are made on request
+    from pipeline.cli import main
+
+    assert main(["--root", str(project), "qc", "duo_000"]) == 0
     qc = probe(project / "data/qc/duo_000.mp4")
     assert qc.has_audio and qc.frames == n_frames
 
@@ -108,6 +112,7 @@ def test_segment_without_people_is_an_empty_result_not_a_failure(project: Path, 
     monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
     write_sources(project, [("pattern", make_test_video(tmp_path / "pattern.mp4", seconds=2))])
     set_params(project, "trim", unannotated="whole")
+    set_params(project, "track", qc_videos=True)  # the track stage renders every QC video
     run_stages(project, "download", "trim", "pose2d", "track")
     assert len(read_pose2d(project / "data/pose2d/pattern_000.parquet").poses) == 0
     assert read_failures(project / "data/pose2d") == []
@@ -120,11 +125,11 @@ def test_corrupt_packets_in_the_middle_are_skipped(project: Path, media_dir: Pat
     write_sources(project, [("solo", media_dir / "videos/dance_solo_384x496_30fps.mp4")])
     (project / "annotations/segments.csv").write_text("video_id,start,end\nsolo,0,4\n")
     run_stages(project, "download", "trim")
-    segment = project / "data/segments/solo_000.mp4"
-    data = bytearray(segment.read_bytes())
-    middle = len(data) // 2
-    data[middle:middle + 3000] = bytes(np.random.default_rng(0).integers(0, 256, 3000, dtype=np.uint8))
-    segment.write_bytes(bytes(data))
+    source = project / "data/raw/solo.mp4"  # the segment's frames are read from it
+    data = bytearray(source.read_bytes())
+    inside = len(data) // 9  # about 2 s into the 18 s file
+    data[inside:inside + 3000] = bytes(np.random.default_rng(0).integers(0, 256, 3000, dtype=np.uint8))
+    source.write_bytes(bytes(data))
     run_stages(project, "pose2d")
     poses = read_pose2d(project / "data/pose2d/solo_000.parquet").poses
     assert len(set(poses.frame)) >= 0.8 * 120

@@ -12,7 +12,7 @@ from pipeline.annotate.clipfile import read_clean
 from pipeline.annotate.manifests import Span, write_manifest
 from pipeline.core.errors import InputError, InputErrors, ModelMissingError
 from pipeline.core.params import load_params
-from pipeline.ingest.catalog import read_ledger
+from pipeline.ingest.catalog import read_index, read_ledger
 from pipeline.ingest.sources import read_sources
 from pipeline.pose.pose2dfile import read_pose2d
 from tests.annotate.test_annotation import HEADER as MANIFEST_HEADER
@@ -67,7 +67,7 @@ def test_unusable_videos_are_failed_ledger_rows(tmp_path: Path, media_dir: Path,
     bad = next(r for r in ledger.values() if r["url"].endswith(src.name))
     assert bad["status"] == "failed" and reason in bad["error_message"], bad["error_message"]
     assert ledger["good"]["status"] == "ok"
-    assert (root / "data/segments/good_000.mp4").exists()  # the good video went on
+    assert "good_000" in read_index(root / "data/segments")  # the good video went on
 
 
 def test_missing_local_file(tmp_path: Path, media_dir: Path) -> None:
@@ -75,7 +75,7 @@ def test_missing_local_file(tmp_path: Path, media_dir: Path) -> None:
     run_stages(root, "download", "trim")
     bad = list(read_ledger(root / "data/raw").values())[1]
     assert bad["error_class"] == "not_found" and "gone.mp4" in bad["error_message"]
-    assert (root / "data/segments/good_000.mp4").exists()
+    assert "good_000" in read_index(root / "data/segments")
 
 
 def test_failing_download_http_404(tmp_path: Path, media_dir: Path) -> None:
@@ -87,12 +87,13 @@ def test_failing_download_http_404(tmp_path: Path, media_dir: Path) -> None:
         server.httpd.shutdown()
     bad = list(read_ledger(root / "data/raw").values())[1]
     assert bad["status"] == "failed" and bad["error_class"] == "not_found" and "404" in bad["error_message"]
-    assert (root / "data/segments/good_000.mp4").exists()
+    assert "good_000" in read_index(root / "data/segments")
 
 
 @pytest.mark.parametrize("kind", ["huge_resolution", "rotated_phone", "variable_frame_rate"])
 def test_awkward_but_valid_videos_are_handled(tmp_path: Path, media_dir: Path, kind: str) -> None:
     from pipeline.ingest.media import probe
+    from pipeline.ingest.segmentvideo import SegmentVideo
 
     src = tmp_path / f"{kind}.mp4"
     if kind == "huge_resolution":
@@ -106,14 +107,16 @@ def test_awkward_but_valid_videos_are_handled(tmp_path: Path, media_dir: Path, k
                "-preset", "ultrafast", str(src))
     root = project_with(tmp_path / "p", media_dir, str(src))
     run_stages(root, "download", "trim")
-    seg = probe(root / "data/segments/bad_000.mp4")
+    row = read_index(root / "data/segments")["bad_000"]
+    frames = list(SegmentVideo.from_index(root / "data/raw", row).iter_frames())
+    assert len(frames) == row["frames"] and {f.image.shape for f in frames} == {(row["height"], row["width"], 3)}
     if kind == "huge_resolution":
-        assert max(seg.width, seg.height) == 1280
+        assert max(row["width"], row["height"]) == 1280
     elif kind == "rotated_phone":
-        assert (seg.width, seg.height) == (360, 640)
+        assert (row["width"], row["height"]) == (360, 640)
     else:
         info = probe(src)
-        assert seg.frames == round(info.duration * info.fps)  # constant rate, every slot filled
+        assert row["frames"] == round(info.duration * info.fps)  # constant rate, every slot filled
 
 
 def test_segment_with_no_people(tmp_path: Path, media_dir: Path, models_dir: Path, monkeypatch) -> None:

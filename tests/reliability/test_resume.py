@@ -19,7 +19,7 @@ from pipeline.core.failures import read_failures
 from pipeline.ingest.catalog import read_ledger
 from tests.conftest import PROJECT, run_stages, set_params, write_sources
 
-OUTPUTS = ("data/segments", "data/pose2d", "data/tracks", "data/qc", "data/clean")
+OUTPUTS = ("data/segments", "data/pose2d", "data/tracks", "data/clean")
 
 
 def digests(root: Path) -> dict[str, str]:
@@ -66,7 +66,7 @@ def test_sigkill_at_any_point_then_resume_gives_byte_identical_outputs(tmp_path:
         subprocess.run([sys.executable, "-m", f"stages.{stage}"], cwd=clean, env=env, check=True,
                        capture_output=True)
     reference = digests(clean)
-    assert len(reference) == 4 * 5 + 1  # 4 segments x (mp4, pose2d, tracks, qc, clean) + the index; no wav: silent
+    assert len(reference) == 4 * 3 + 1  # 4 segments x (pose2d, tracks, clean) + the index (segments are views)
 
     for i, after in enumerate((1.0, 2.5, 4.0)):
         root = new_project(tmp_path / f"killed{i}", media_dir, SOLO, SOLO_SEGMENTS)
@@ -114,30 +114,31 @@ def test_adding_a_video_processes_only_that_video(tmp_path: Path, media_dir: Pat
     added = set(after) - set(before)
     assert redone == set()  # nothing of the first two videos was touched
     assert {k.split("/")[-1].split(".")[0] for k in added} == {"dance_000"}
-    assert sorted(k.split("/")[1] for k in added) == ["clean", "pose2d", "qc", "segments", "segments", "tracks"]
+    assert sorted(k.split("/")[1] for k in added) == ["clean", "pose2d", "tracks"]  # segments: an index row
     assert len(read_ledger(root / "data/raw")) == ledger_rows + 1
 
 
 def test_retry_reruns_only_the_failed_items(tmp_path: Path, media_dir: Path, models_dir: Path, monkeypatch) -> None:
     monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
-    root = new_project(tmp_path / "p", media_dir, SOLO, "solo,0,2\nsolo,2,4\n")
+    root = new_project(tmp_path / "p", media_dir, SOLO + [("taiji", "movement_single_speech_taiji.mp4")],
+                       "solo,0,2\ntaiji,2,4\n")
     run_stages(root, "download", "trim")
-    good = root / "data/segments/solo_000.mp4"
-    bad = root / "data/segments/solo_001.mp4"
+    good = root / "data/raw/solo.mp4"
+    bad = root / "data/raw/taiji.mp4"  # the download taiji_000 is read from
     original = bad.read_bytes()
     bad.write_bytes(b"not a video any more")
     set_params(root, "pose2d", max_failure_ratio=1.0)
     run_stages(root, "pose2d")
     failures = [asdict(f) for f in read_failures(root / "data/pose2d")]
-    assert [f["item"] for f in failures] == ["solo_001"]
-    assert "solo_001.mp4: not a readable media file" in failures[0]["message"]
+    assert [f["item"] for f in failures] == ["taiji_000"]
+    assert "taiji.mp4: not a readable media file" in failures[0]["message"]
     kept = (root / "data/pose2d/solo_000.parquet").stat().st_mtime_ns
     bad.write_bytes(original)  # the annotator fixed the file
     out = subprocess.run([sys.executable, "-m", "pipeline.cli", "--root", str(root), "retry", "pose2d"],
                          capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(PROJECT)})
     assert out.returncode == 0, out.stderr
-    assert "retrying 1 items: solo_001" in out.stdout
-    assert (root / "data/pose2d/solo_001.parquet").exists()
+    assert "retrying 1 items: taiji_000" in out.stdout
+    assert (root / "data/pose2d/taiji_000.parquet").exists()
     assert (root / "data/pose2d/solo_000.parquet").stat().st_mtime_ns == kept
     assert read_failures(root / "data/pose2d") == []
     assert good.exists()

@@ -7,7 +7,7 @@ Routes (everything else, including any path that tries to leave the project, is 
   GET  /api/segments/<id>       tracks, manifest rows (or the proposal), problems, version
   PUT  /api/segments/<id>       save rows: checked like `dance3d manifests check`, written
                                 atomically, refused (409) if the file changed since `version`
-  GET  /qc/<id>.mp4             the QC video (HTTP range requests, so the player can seek)
+  GET  /qc/<id>.mp4             the QC video, rendered on first request (HTTP range requests, so the player can seek)
 """
 
 from __future__ import annotations
@@ -31,8 +31,9 @@ from pipeline.annotate.manifests import (
     write_manifest,
 )
 from pipeline.annotate.proposals import ProposalOptions, propose, track_stats
+from pipeline.core.errors import Dance3dError
 from pipeline.core.ids import is_safe_id
-from pipeline.core.paths import QC, TRACK_MANIFESTS, TRACKS
+from pipeline.core.paths import TRACK_MANIFESTS, TRACKS
 from pipeline.core.storage import item_files
 from pipeline.pose.trackfile import read_tracks
 
@@ -50,6 +51,14 @@ class ReviewApp:
         self.proposals = proposals
         self.min_clip_seconds = min_clip_seconds
         self.lock = threading.Lock()  # one save at a time
+        self.qc_lock = threading.Lock()  # one QC render at a time (the player sends several range requests)
+
+    def qc_video(self, seg_id: str) -> Path:
+        """The segment's QC video, rendered on first request (and again when its tracks are newer)."""
+        from pipeline.pose.qc import qc_video
+
+        with self.qc_lock:
+            return qc_video(self.root, seg_id, kp_min_score=self.proposals.kp_min_score)
 
     def manifest_path(self, seg_id: str) -> Path:
         return self.root / TRACK_MANIFESTS / f"{seg_id}.csv"
@@ -204,9 +213,13 @@ def make_handler(app: ReviewApp) -> type[BaseHTTPRequestHandler]:
             seg_id = self._segment_id(_SEGMENT.fullmatch(path))
             if seg_id:
                 return self._json(HTTPStatus.OK, app.segment(seg_id))
-            match = _QC.fullmatch(path)
-            if match and is_safe_id(match.group(1)) and (app.root / QC / f"{match.group(1)}.mp4").is_file():
-                return self._video(app.root / QC / f"{match.group(1)}.mp4")
+            seg_id = self._segment_id(_QC.fullmatch(path))
+            if seg_id:
+                try:
+                    return self._video(app.qc_video(seg_id))
+                except Dance3dError as exc:
+                    log.error("%s", exc)
+                    return self._send(HTTPStatus.INTERNAL_SERVER_ERROR, f"{exc}\n".encode(), "text/plain")
             return self._not_found()
 
         do_HEAD = do_GET

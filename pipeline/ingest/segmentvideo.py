@@ -1,0 +1,127 @@
+"""A segment as a view on its downloaded video: no copy is written.
+
+Frame k of a segment shows the source at ``start + k / rate``: it is the latest source
+frame shown before ``start + (k + 1/2) / rate`` (the rule of ffmpeg's ``fps`` filter, which
+the earlier re-encoded segments used), scaled to the segment's size with swscale's bicubic
+filter and turned upright. Source frames are decoded from the keyframe before ``start``;
+only the frames a segment shows are converted. The segment has exactly ``frames`` frames:
+if the source ends early, its last frame is held.
+
+Audio is cut from the source the same way (``audio_input``: ffmpeg input options that seek
+to ``start`` and read the segment's duration).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from fractions import Fraction
+from pathlib import Path
+from typing import Iterator, Mapping
+
+import av
+
+from pipeline.core.errors import MediaError
+from pipeline.ingest.media import Frame, _open, _reason, _rotate, video_streams
+
+log = logging.getLogger(__name__)
+SEEK_MARGIN = 1.0  # seconds: seek this far before start (the keyframe before it is decoded from)
+
+
+@dataclass(frozen=True)
+class SegmentVideo:
+    """Where a segment's frames come from, and the clock and size they are given."""
+
+    source: Path        # the downloaded video
+    start: float        # seconds on the source's clock (from its first video frame)
+    rate: Fraction      # segment frame rate
+    frames: int         # exactly this many frames
+    width: int          # upright output size
+    height: int
+    has_audio: bool = False
+    audio_stream: int | None = None
+
+    @property
+    def duration(self) -> float:
+        return float(self.frames / self.rate)
+
+    @classmethod
+    def from_index(cls, raw_dir: Path, row: Mapping) -> SegmentVideo:
+        """The view that a row of the segment index describes (``source`` names a file in ``raw_dir``)."""
+        return cls(Path(raw_dir) / row["source"], float(row["start"]), Fraction(row["fps_fraction"]),
+                   int(row["frames"]), int(row["width"]), int(row["height"]), bool(row["has_audio"]),
+                   row.get("audio_stream"))
+
+    def audio_input(self) -> list[str]:
+        """ffmpeg input options reading this segment's audio from the source (accurate seek)."""
+        return ["-ss", f"{self.start:.6f}", "-t", f"{self.duration:.6f}", "-i", str(self.source)]
+
+    def iter_frames(self, *, max_bad_packets: int = 25) -> Iterator[Frame]:
+        """The segment's frames, in order: Frame(k, k / rate, upright BGR image of width x height)."""
+        if self.frames < 1:
+            return
+        half = 0.5 / float(self.rate)
+        emitted = 0
+        held = None  # (decoded frame, converted image or None)
+        with _open(self.source) as container:
+            streams = video_streams(container)
+            if not streams:
+                raise MediaError(self.source, "no video stream")
+            vs = streams[0]
+            vs.thread_type = "AUTO"
+            origin = vs.start_time or 0
+            if self.start > SEEK_MARGIN:
+                target = origin + int((self.start - SEEK_MARGIN) / vs.time_base)
+                container.seek(target, stream=vs, backward=True, any_frame=False)
+            for decoded in self._decode(container, vs, max_bad_packets):
+                pts = decoded.pts if decoded.pts is not None else origin
+                tau = float((pts - origin) * vs.time_base) - self.start
+                if tau < -half:
+                    continue  # before the segment
+                # Each slot whose window ends at or before this frame is shown by the held frame.
+                while held is not None and tau >= emitted / float(self.rate) + half:
+                    held = self._convert(held)
+                    yield Frame(emitted, float(emitted / self.rate), held[1])
+                    emitted += 1
+                    if emitted == self.frames:
+                        return
+                held = (decoded, None)
+        if held is None:
+            raise MediaError(self.source, f"no video frames at or after {self.start:.3f} s")
+        if emitted < self.frames:
+            log.debug("%s: source ends %d frames early; its last frame is held", self.source, self.frames - emitted)
+        held = self._convert(held)
+        while emitted < self.frames:
+            yield Frame(emitted, float(emitted / self.rate), held[1])
+            emitted += 1
+
+    def _decode(self, container, vs, max_bad_packets: int):
+        bad = 0
+        try:
+            for packet in container.demux(vs):
+                try:
+                    yield from packet.decode()
+                except av.error.FFmpegError as exc:
+                    bad += 1
+                    log.warning("%s: skipped a corrupt packet (%s)", self.source, _reason(exc))
+                    if bad > max_bad_packets:
+                        raise MediaError(self.source, f"too many corrupt packets ({bad}); last: {_reason(exc)}") \
+                            from None
+        except av.error.FFmpegError as exc:
+            raise MediaError(self.source, f"decoding stopped ({_reason(exc)})") from None
+
+    def _convert(self, held: tuple) -> tuple:
+        frame, image = held
+        if image is not None:
+            return held
+        rotation = int(frame.rotation or 0)
+        w, h = (self.height, self.width) if rotation % 180 else (self.width, self.height)
+        rgb = frame.reformat(width=w, height=h, format="bgr24", interpolation="BICUBIC")
+        return frame, _rotate(rgb.to_ndarray(), rotation)
+
+
+def frames_of(video: Path | SegmentVideo) -> Iterator[Frame]:
+    """Frames of a video file (every frame, its own timestamps) or of a segment view."""
+    from pipeline.ingest.media import iter_frames
+
+    return video.iter_frames() if isinstance(video, SegmentVideo) else iter_frames(video)
