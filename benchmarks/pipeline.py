@@ -41,7 +41,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 import psutil
 import yaml
 
@@ -143,7 +142,11 @@ def run_stage(root: Path, stage: str) -> dict:
             return
         while proc.poll() is None:
             total = 0
-            for p in [top, *top.children(recursive=True)]:
+            try:
+                tree = [top, *top.children(recursive=True)]
+            except psutil.Error:  # a child ended while being listed
+                continue
+            for p in tree:
                 try:
                     total += p.memory_info().rss
                 except psutil.Error:
@@ -211,21 +214,27 @@ def summarise(runs: list[dict]) -> dict:
     return out
 
 
-def read_corpus(root: Path) -> pd.DataFrame:
-    files = sorted((root / "data/corpus").glob("*/shard-*.parquet"))
-    return pd.concat([pd.read_parquet(f) for f in files]).set_index("window_id") if files else pd.DataFrame()
+def read_corpus(root: Path) -> dict[str, dict]:
+    """Window id -> its row (nested lists as Python lists)."""
+    import pyarrow.parquet as pq
+
+    rows = {}
+    for f in sorted((root / "data/corpus").glob("*/shard-*.parquet")):
+        for row in pq.read_table(f).to_pylist():
+            rows[row["window_id"]] = row
+    return rows
 
 
 def compare_corpora(a: Path, b: Path) -> dict:
     """Window by window: which windows both have, and how far their motion and features differ."""
     ca, cb = read_corpus(a), read_corpus(b)
-    common = ca.index.intersection(cb.index)
+    common = sorted(set(ca) & set(cb))
     out = {"windows": [len(ca), len(cb)], "common": len(common)}
     for column, scale, unit in (("motion", 1000.0, "mm"), ("mfcc", 1.0, ""), ("onset", 1.0, ""), ("beat", 1.0, "")):
-        if not len(common):
+        if not common:
             break
-        xa = np.stack([np.array(v.tolist(), dtype=float) for v in ca.loc[common, column]])
-        xb = np.stack([np.array(v.tolist(), dtype=float) for v in cb.loc[common, column]])
+        xa = np.array([ca[w][column] for w in common], dtype=float)
+        xb = np.array([cb[w][column] for w in common], dtype=float)
         diff = np.abs(xa - xb) * scale
         if column == "motion":  # per joint: Euclidean distance
             diff = np.linalg.norm((xa - xb) * scale, axis=-1)
@@ -275,14 +284,16 @@ def main() -> None:
                 shutil.rmtree(last_root[i], ignore_errors=True)
             last_root[i] = root
     results = {"set": args.set, "runs": args.runs, "codes": [str(c) for c in codes],
-               "summaries": [summarise(runs[i]) for i in range(len(codes))]}
-    if len(codes) > 1:
-        results["corpus_vs_first"] = [compare_corpora(last_root[0], last_root[i]) for i in range(1, len(codes))]
+               "summaries": [summarise(runs[i]) for i in range(len(codes))], "raw_runs": runs}
     for code, summary in zip(codes, results["summaries"]):
-        print(table(str(code), summary), end="\n\n")
-    print(json.dumps(results.get("corpus_vs_first", []), indent=2))
+        print(table(str(code), summary), end="\n\n", flush=True)
     if args.json:
         args.json.write_text(json.dumps(results, indent=2))
+    if len(codes) > 1:
+        results["corpus_vs_first"] = [compare_corpora(last_root[0], last_root[i]) for i in range(1, len(codes))]
+        print(json.dumps(results["corpus_vs_first"], indent=2))
+        if args.json:
+            args.json.write_text(json.dumps(results, indent=2))
     if not args.keep:
         shutil.rmtree(work, ignore_errors=True)
 
