@@ -5,7 +5,7 @@ a fresh temporary project holding a copy of the code under test, on a set of vid
 
 - ``demo``: the demo sources and segments of the code tree (local copies from DANCE3D_MEDIA);
 - ``long``: a long single-dancer video assembled from the shared clips (every dance and
-  movement clip, twice over, about 95 s) and a 20 s composite of five people (two dancers,
+  movement clip fitted into 1280 x 720, twice over, about 94 s) and a 20 s composite of five people (two dancers,
   three seated musicians), each processed whole.
 
 Per stage and in total it reports wall time, video-seconds per wall-second (of the segmented
@@ -59,7 +59,7 @@ def ffmpeg(*args: str) -> None:
 
 
 def long_set(media: Path, out: Path) -> list[tuple[str, Path]]:
-    """The long single-dancer video (each clip scaled to 720 px high, 30 fps, twice over) and the composite."""
+    """The long single-dancer video (each clip fitted into 1280 x 720, 30 fps, twice over) and the composite."""
     from benchmarks.pose2d import five_people
 
     videos = media / "videos"
@@ -72,7 +72,7 @@ def long_set(media: Path, out: Path) -> list[tuple[str, Path]]:
     chains = []
     for i in range(n):
         name = LONG_PARTS[i % len(LONG_PARTS)]
-        chains.append(f"[{i}:v]scale=-2:720,fps=30,setsar=1,format=yuv420p[v{i}]")
+        chains.append(f"[{i}:v]scale=-2:720,pad=1280:720:(ow-iw)/2:0,fps=30,setsar=1,format=yuv420p[v{i}]")
         if name.startswith("dance_solo"):
             chains.append(f"anullsrc=r=44100:cl=stereo,atrim=duration=18.2[a{i}]")
         else:
