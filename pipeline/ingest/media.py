@@ -187,6 +187,22 @@ def _rotate(image: np.ndarray, rotation: int) -> np.ndarray:
     return np.ascontiguousarray(np.rot90(image, k)) if k else image
 
 
+def decode_video(container, stream, path: Path, max_bad_packets: int = 25) -> Iterator[av.VideoFrame]:
+    """Decoded frames of ``stream`` in order. A corrupt packet is skipped with a warning; more
+    than ``max_bad_packets`` of them raise MediaError. Demuxing errors propagate (av's)."""
+    bad = 0
+    for packet in container.demux(stream):
+        try:
+            decoded = packet.decode()
+        except av.error.FFmpegError as exc:
+            bad += 1
+            log.warning("%s: skipped a corrupt packet (%s)", path, _reason(exc))
+            if bad > max_bad_packets:
+                raise MediaError(path, f"too many corrupt packets ({bad}); last: {_reason(exc)}") from None
+            continue
+        yield from decoded
+
+
 def iter_frames(path: str | Path, *, max_bad_packets: int = 25) -> Iterator[Frame]:
     """Stream upright BGR frames with their timestamps.
 
@@ -203,23 +219,12 @@ def iter_frames(path: str | Path, *, max_bad_packets: int = 25) -> Iterator[Fram
         vs.thread_type = "AUTO"
         start = vs.start_time or 0
         index = 0
-        bad = 0
         try:
-            packets = container.demux(vs)
-            for packet in packets:
-                try:
-                    decoded = packet.decode()
-                except av.error.FFmpegError as exc:
-                    bad += 1
-                    log.warning("%s: skipped a corrupt packet (%s)", path, _reason(exc))
-                    if bad > max_bad_packets:
-                        raise MediaError(path, f"too many corrupt packets ({bad}); last: {_reason(exc)}") from None
-                    continue
-                for frame in decoded:
-                    pts = frame.pts if frame.pts is not None else start
-                    time = float((pts - start) * vs.time_base)
-                    image = _rotate(frame.to_ndarray(format="bgr24"), int(frame.rotation or 0))
-                    yield Frame(index, time, image)
-                    index += 1
+            for frame in decode_video(container, vs, path, max_bad_packets):
+                pts = frame.pts if frame.pts is not None else start
+                time = float((pts - start) * vs.time_base)
+                image = _rotate(frame.to_ndarray(format="bgr24"), int(frame.rotation or 0))
+                yield Frame(index, time, image)
+                index += 1
         except av.error.FFmpegError as exc:
             raise MediaError(path, f"decoding stopped after {index} frames ({_reason(exc)})") from None

@@ -7,8 +7,8 @@ filter and turned upright. Source frames are decoded from the keyframe before ``
 only the frames a segment shows are converted. The segment has exactly ``frames`` frames:
 if the source ends early, its last frame is held.
 
-Audio is cut from the source the same way (``audio_input``: ffmpeg input options that seek
-to ``start`` and read the segment's duration).
+Audio is cut from the source the same way (``audio_seek``: ffmpeg input options that seek to
+``start`` and read the segment's duration).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from typing import Iterator, Mapping
 import av
 
 from pipeline.core.errors import MediaError
-from pipeline.ingest.media import Frame, _open, _reason, _rotate, video_streams
+from pipeline.ingest.media import Frame, _open, _reason, _rotate, decode_video, video_streams
 
 log = logging.getLogger(__name__)
 SEEK_MARGIN = 1.0  # seconds: seek this far before start (the keyframe before it is decoded from)
@@ -52,9 +52,9 @@ class SegmentVideo:
                    int(row["frames"]), int(row["width"]), int(row["height"]), bool(row["has_audio"]),
                    row.get("audio_stream"))
 
-    def audio_input(self) -> list[str]:
-        """ffmpeg input options reading this segment's audio from the source (accurate seek)."""
-        return ["-ss", f"{self.start:.6f}", "-t", f"{self.duration:.6f}", "-i", str(self.source)]
+    def audio_seek(self) -> list[str]:
+        """ffmpeg input options (before ``-i source``) that read this segment's span (accurate seek)."""
+        return ["-ss", f"{self.start:.6f}", "-t", f"{self.duration:.6f}"]
 
     def iter_frames(self, *, max_bad_packets: int = 25) -> Iterator[Frame]:
         """The segment's frames, in order: Frame(k, k / rate, upright BGR image of width x height)."""
@@ -73,19 +73,22 @@ class SegmentVideo:
             if self.start > SEEK_MARGIN:
                 target = origin + int((self.start - SEEK_MARGIN) / vs.time_base)
                 container.seek(target, stream=vs, backward=True, any_frame=False)
-            for decoded in self._decode(container, vs, max_bad_packets):
-                pts = decoded.pts if decoded.pts is not None else origin
-                tau = float((pts - origin) * vs.time_base) - self.start
-                if tau < -half:
-                    continue  # before the segment
-                # Each slot whose window ends at or before this frame is shown by the held frame.
-                while held is not None and tau >= emitted / float(self.rate) + half:
-                    held = self._convert(held)
-                    yield Frame(emitted, float(emitted / self.rate), held[1])
-                    emitted += 1
-                    if emitted == self.frames:
-                        return
-                held = (decoded, None)
+            try:
+                for decoded in decode_video(container, vs, self.source, max_bad_packets):
+                    pts = decoded.pts if decoded.pts is not None else origin
+                    tau = float((pts - origin) * vs.time_base) - self.start
+                    if tau < -half:
+                        continue  # before the segment
+                    # Each slot whose window ends at or before this frame is shown by the held frame.
+                    while held is not None and tau >= emitted / float(self.rate) + half:
+                        held = self._convert(held)
+                        yield Frame(emitted, float(emitted / self.rate), held[1])
+                        emitted += 1
+                        if emitted == self.frames:
+                            return
+                    held = (decoded, None)
+            except av.error.FFmpegError as exc:
+                raise MediaError(self.source, f"decoding stopped after {emitted} frames ({_reason(exc)})") from None
         if held is None:
             raise MediaError(self.source, f"no video frames at or after {self.start:.3f} s")
         if emitted < self.frames:
@@ -94,21 +97,6 @@ class SegmentVideo:
         while emitted < self.frames:
             yield Frame(emitted, float(emitted / self.rate), held[1])
             emitted += 1
-
-    def _decode(self, container, vs, max_bad_packets: int):
-        bad = 0
-        try:
-            for packet in container.demux(vs):
-                try:
-                    yield from packet.decode()
-                except av.error.FFmpegError as exc:
-                    bad += 1
-                    log.warning("%s: skipped a corrupt packet (%s)", self.source, _reason(exc))
-                    if bad > max_bad_packets:
-                        raise MediaError(self.source, f"too many corrupt packets ({bad}); last: {_reason(exc)}") \
-                            from None
-        except av.error.FFmpegError as exc:
-            raise MediaError(self.source, f"decoding stopped ({_reason(exc)})") from None
 
     def _convert(self, held: tuple) -> tuple:
         frame, image = held

@@ -202,7 +202,7 @@ def audio_segment(job: AudioJob) -> dict:
     from pipeline.music.featurefile import features_table, write_features
 
     seg = job.segment
-    loudness = normalise_loudness(seg.source, job.out_audio, job.loudness, seg.audio_stream, seg.audio_input()[:4])
+    loudness = normalise_loudness(seg.source, job.out_audio, job.loudness, seg.audio_stream, seg.audio_seek())
     beats = track_beats(load_for_beats(job.out_audio), BEAT_SR)
     f = compute_features(load_for_features(job.out_audio, job.fps), tuple(job.extra_sets), job.fps, beats)
     meta = {"segment_id": job.out_features.stem, "fps": job.fps, "tempo": f.tempo, "loudness": loudness.as_dict(),

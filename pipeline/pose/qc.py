@@ -92,8 +92,8 @@ def render_qc(segment: SegmentVideo, fps: float, frames: np.ndarray, track_ids: 
                "-f", "rawvideo", "-pix_fmt", "bgr24", "-s", f"{w}x{h}", "-r", f"{fps:.6f}", "-i", "pipe:0"]
         if segment.has_audio:
             audio = f"1:{segment.audio_stream}" if segment.audio_stream is not None else "1:a:0"
-            cmd += [*segment.audio_input(), "-map", "0:v:0", "-map", audio, "-c:a", "aac", "-b:a", "128k",
-                    "-shortest"]
+            cmd += [*segment.audio_seek(), "-i", str(segment.source), "-map", "0:v:0", "-map", audio,
+                    "-c:a", "aac", "-b:a", "128k", "-shortest"]
         cmd += ["-c:v", "libx264", "-preset", preset, "-crf", str(crf), "-pix_fmt", "yuv420p",
                 "-fflags", "+bitexact", "-flags:v", "+bitexact", "-flags:a", "+bitexact", "-map_metadata", "-1",
                 "-movflags", "+faststart", "-f", "mp4", str(tmp)]

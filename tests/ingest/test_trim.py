@@ -45,7 +45,7 @@ def test_a_segment_has_the_requested_frames_on_a_constant_clock_and_its_audio(tm
     assert np.allclose([f.time for f in frames], np.arange(115) / 24)
     assert {f.image.shape for f in frames} == {(480, 270, 3)}
     wav = tmp_path / "a.wav"
-    ffmpeg(*view.audio_input(), "-map", "0:a:0", "-c:a", "pcm_s16le", str(wav))
+    ffmpeg(*view.audio_seek(), "-i", str(view.source), "-map", "0:a:0", "-c:a", "pcm_s16le", str(wav))
     with wave.open(str(wav)) as w:
         assert w.getframerate() == 44100
         assert w.getnframes() / 44100 == pytest.approx(115 / 24, abs=1 / 24)
