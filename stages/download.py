@@ -1,4 +1,5 @@
-"""download stage: manifests/sources.csv -> data/raw/<video_id>.<ext>, .info.json, ledger.parquet."""
+"""download stage: manifests/sources.csv (+ data/catalog for its lists) -> data/raw/<video_id>.<ext>,
+.info.json, ledger.parquet."""
 
 from __future__ import annotations
 
@@ -13,10 +14,11 @@ from pipeline.core.errors import RateLimitedError
 from pipeline.core.executor import run_items
 from pipeline.core.failures import Failure, check_failure_ratio, now, write_failures
 from pipeline.core.params import load_params, stage_params
-from pipeline.core.paths import RAW, SOURCES
+from pipeline.core.paths import CATALOG, RAW, SOURCES
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import remove_stale_temps
-from pipeline.ingest.catalog import read_ledger, write_ledger
+from pipeline.ingest.catalog import read_discovered, read_ledger, write_ledger
+from pipeline.ingest.discover import entry_sources, is_list_source
 from pipeline.ingest.download import DownloadOptions, LedgerRow, download_source, local_copies
 from pipeline.ingest.sources import Source, read_sources
 
@@ -33,6 +35,30 @@ def _write_ledger(raw_dir: Path, sources: list[Source], rows: dict[str, dict], p
     write_ledger(raw_dir, [rows[s.url] for s in sources if s.url in rows], params)
 
 
+def expand_sources(root: Path, sources: list[Source]) -> list[Source]:
+    """Video rows as they are; each list row replaced by its selected catalogue entries, in order.
+
+    A video listed twice (a direct row and a list, or two lists) is fetched once, for its first row.
+    """
+    discovered = read_discovered(root / CATALOG)
+    out: list[Source] = []
+    seen: set[str] = set()
+    for source in sources:
+        if not is_list_source(source):
+            expanded = [source]
+        elif source.url in discovered:
+            expanded = entry_sources(source, discovered[source.url])
+        else:
+            log.warning("%s: %s is a channel, playlist or feed that is not in %s yet: run the discover stage",
+                        source.where(SOURCES), source.url, CATALOG)
+            expanded = []
+        for s in expanded:
+            if s.url not in seen:
+                seen.add(s.url)
+                out.append(s)
+    return out
+
+
 def run(root: Path) -> None:
     params = stage_params(load_params(root / "params.yaml"), "download")
     opts = DownloadOptions(
@@ -43,7 +69,7 @@ def run(root: Path) -> None:
         allow_file_urls=bool(params.get("allow_file_urls", True)),
         socket_timeout=float(params.get("socket_timeout", 30.0)),
     )
-    sources = read_sources(root / SOURCES, base_dir=root, allow_file_urls=opts.allow_file_urls)
+    sources = expand_sources(root, read_sources(root / SOURCES, base_dir=root, allow_file_urls=opts.allow_file_urls))
     raw_dir = root / RAW
     raw_dir.mkdir(parents=True, exist_ok=True)
     remove_stale_temps(raw_dir)
@@ -88,9 +114,9 @@ def run(root: Path) -> None:
                             error_class=outcome.error_class, error_message=outcome.error_message).as_dict()
         rows[source.url] = row
         if row["status"] == "failed":
-            failures.append(Failure(f"{SOURCES}:{source.line}", "download", row["error_class"],
+            failures.append(Failure(source.where(SOURCES), "download", row["error_class"],
                                     f"{source.url}: {row['error_message']}", now()))
-            log.warning("%s:%d: %s: %s", SOURCES, source.line, source.url, row["error_message"])
+            log.warning("%s: %s: %s", source.where(SOURCES), source.url, row["error_message"])
         _write_ledger(raw_dir, sources, rows, params)  # after every item: nothing done is lost
     _write_ledger(raw_dir, sources, rows, params)
     shutil.rmtree(raw_dir / ".incoming", ignore_errors=True)

@@ -52,9 +52,9 @@ def ffmpeg(*args: str) -> None:
 
 
 def make_test_video(path: Path, *, seconds: float = 2.0, fps: str = "25", size: str = "320x240",
-                    audio: bool = True) -> Path:
-    """A synthetic H.264 test-pattern video (with a 440 Hz tone when ``audio``)."""
-    args = ["-f", "lavfi", "-i", f"testsrc2=size={size}:rate={fps}:duration={seconds}"]
+                    audio: bool = True, pattern: str = "testsrc2") -> Path:
+    """A synthetic H.264 test-pattern video (lavfi ``pattern``; with a 440 Hz tone when ``audio``)."""
+    args = ["-f", "lavfi", "-i", f"{pattern}=size={size}:rate={fps}:duration={seconds}"]
     if audio:
         args += ["-f", "lavfi", "-i", f"sine=frequency=440:sample_rate=44100:duration={seconds}"]
     args += ["-c:v", "libx264", "-preset", "ultrafast", "-pix_fmt", "yuv420p"]

@@ -106,7 +106,7 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     third = _dvc(root, "repro")
     assert third.returncode == 0, third.stderr[-3000:]
     ran = [line.split("'")[1] for line in third.stdout.splitlines() if line.startswith("Running stage")]
-    assert ran == ["clean", "lift", "smooth", "resample", "shard", "train"]
+    assert ran == ["discover", "clean", "lift", "smooth", "resample", "shard", "train"]  # discover: always
     assert not read_clean(root / "data/clean/solo_dance_001.parquet").clips
     assert sum(len(c.frame) for c in read_clean(root / "data/clean/solo_dance_000.parquet").clips) == 270
 

@@ -5,6 +5,7 @@ from pathlib import Path
 SOURCES = Path("manifests/sources.csv")
 TRACK_MANIFESTS = Path("manifests/tracks")
 ANNOTATIONS = Path("annotations/segments.csv")
+CATALOG = Path("data/catalog")
 RAW = Path("data/raw")
 SEGMENTS = Path("data/segments")
 POSE2D = Path("data/pose2d")

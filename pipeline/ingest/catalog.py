@@ -1,4 +1,5 @@
-"""The catalogue files' contract: the download ledger and the segment index (schemas, readers, writers)."""
+"""The catalogue files' contract: the discovered videos, the download ledger and the segment index
+(schemas, readers, writers)."""
 
 from __future__ import annotations
 
@@ -10,10 +11,23 @@ import pyarrow.parquet as pq
 
 from pipeline.core.storage import write_parquet
 
+DISCOVERED = "videos.parquet"
+DISCOVERED_VERSION = 1
 LEDGER = "ledger.parquet"
 INDEX = "index.parquet"
 LEDGER_VERSION = 1
 INDEX_VERSION = 2  # 2: segments are views on data/raw (source, audio_stream), no files
+
+DISCOVERED_SCHEMA = pa.schema(
+    [
+        ("list_url", pa.string()), ("list_line", pa.int32()),  # the sources.csv row of the channel/playlist/feed
+        ("position", pa.int32()),  # order of first discovery within the list (stable: new entries are appended)
+        ("url", pa.string()), ("video_id", pa.string()), ("title", pa.string()), ("channel", pa.string()),
+        ("upload_date", pa.string()), ("duration", pa.float64()), ("tags", pa.list_(pa.string())),
+        ("licence", pa.string()), ("style", pa.string()),
+        ("selected", pa.bool_()), ("reason", pa.string()),  # the discover filters' verdict, and why not
+    ]
+)
 
 LEDGER_SCHEMA = pa.schema(
     [
@@ -37,6 +51,23 @@ INDEX_SCHEMA = pa.schema(
         ("fingerprint", pa.string()),
     ]
 )
+
+
+def read_discovered(catalog_dir: Path) -> dict[str, list[dict]]:
+    """The discovered videos by list url, each list in position order ({} when there is none)."""
+    path = Path(catalog_dir) / DISCOVERED
+    lists: dict[str, list[dict]] = {}
+    if path.exists():
+        for row in pq.read_table(path).to_pylist():
+            lists.setdefault(row["list_url"], []).append(row)
+    return lists
+
+
+def write_discovered(catalog_dir: Path, rows: list[dict], params: Mapping[str, Any]) -> None:
+    """Lists in sources.csv order, entries in position order. No timestamps: an unchanged feed
+    gives a byte-identical file, so DVC re-runs nothing downstream."""
+    write_parquet(pa.Table.from_pylist(rows, schema=DISCOVERED_SCHEMA), Path(catalog_dir) / DISCOVERED,
+                  schema_version=DISCOVERED_VERSION, params=params)
 
 
 def read_ledger(raw_dir: Path) -> dict[str, dict]:

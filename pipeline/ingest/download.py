@@ -192,13 +192,15 @@ def download_source(source: Source, raw_dir: Path, opts: DownloadOptions,
             time.sleep(opts.backoff_seconds * 2 ** (attempt - 1))
     assert info is not None
     try:
-        return _finish(row, info, stage, raw_dir, taken_ids, source.sha256)
+        return _finish(row, info, stage, raw_dir, taken_ids, source)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
 
 
 def _finish(row: LedgerRow, info: dict[str, Any], stage: Path, raw_dir: Path, taken_ids: set[str],
-            expected_sha256: str = "") -> LedgerRow:
+            listed: Source) -> LedgerRow:
+    """``listed``: the source row, whose sha256 is checked and whose list metadata fills what the site's info lacks."""
+    expected_sha256 = listed.sha256
     downloads = info.get("requested_downloads") or [{}]
     media = Path(downloads[0].get("filepath") or "")
     if not media.is_file():
@@ -213,11 +215,11 @@ def _finish(row: LedgerRow, info: dict[str, Any], stage: Path, raw_dir: Path, ta
     if not row.video_id and video_id in taken_ids:
         video_id = f"{video_id}-{hashlib.sha256(row.url.encode()).hexdigest()[:6]}"
     row.video_id = check_id(video_id, "video_id")
-    row.title = str(info.get("title") or "")
+    row.title = str(info.get("title") or "") or listed.title
     row.uploader = str(info.get("uploader") or "")
     row.channel = row.channel or str(info.get("channel") or info.get("uploader") or "")
-    row.upload_date = str(info.get("upload_date") or "")
-    row.tags = [str(t) for t in (info.get("tags") or [])]
+    row.upload_date = str(info.get("upload_date") or "") or listed.upload_date
+    row.tags = [str(t) for t in (info.get("tags") or [])] or list(listed.tags)
     try:
         video = probe(media)
     except MediaError as exc:

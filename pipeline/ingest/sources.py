@@ -1,4 +1,5 @@
-"""``manifests/sources.csv``: what to fetch. One row per video."""
+"""``manifests/sources.csv``: what to fetch. One row per video, or per channel, playlist or feed
+(``kind=list``; discovery expands those into the catalogue)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,8 @@ from pipeline.core.ids import check_id
 from pipeline.core.tables import read_csv
 
 REQUIRED = ("url",)
-OPTIONAL = ("video_id", "sha256", "channel", "style", "licence", "note")
+OPTIONAL = ("video_id", "sha256", "channel", "style", "licence", "note", "kind")
+KINDS = ("video", "list")  # empty: list when yt-dlp knows the url as a channel or playlist
 _SHA256 = re.compile(r"[0-9a-f]{64}")
 
 
@@ -27,6 +29,15 @@ class Source:
     style: str = ""
     licence: str = ""
     note: str = ""
+    kind: str = ""           # "video", "list" or "" (decided from the url by discovery)
+    entry: int = 0           # > 0: the entry-th video of the list on this line
+    title: str = ""          # what the list said of the entry (the download's info wins)
+    upload_date: str = ""
+    tags: tuple[str, ...] = ()
+
+    def where(self, sources_file: str | Path) -> str:
+        """Where this source comes from, for messages: file:line, and the list entry."""
+        return f"{sources_file}:{self.line}" + (f" entry {self.entry}" if self.entry else "")
 
 
 def normalise_url(raw: str, base_dir: Path, allow_file_urls: bool) -> str:
@@ -77,6 +88,12 @@ def read_sources(path: Path, *, base_dir: Path, allow_file_urls: bool = True) ->
         sha256 = row.get("sha256").lower()
         if sha256 and not _SHA256.fullmatch(sha256):
             raise InputError(path, f"sha256 {row.get('sha256')!r} is not 64 hexadecimal digits", row.line)
+        kind = row.get("kind").lower()
+        if kind not in ("",) + KINDS:
+            raise InputError(path, f"kind {row.get('kind')!r} is not one of {', '.join(KINDS)} (or empty)", row.line)
+        if kind == "list" and (video_id or sha256):
+            raise InputError(path, "a list row (kind=list) names many videos: leave video_id and sha256 empty",
+                             row.line)
         if url in seen_urls:
             raise InputError(path, f"duplicate url (first on line {seen_urls[url]})", row.line)
         seen_urls[url] = row.line
@@ -91,6 +108,7 @@ def read_sources(path: Path, *, base_dir: Path, allow_file_urls: bool = True) ->
                 style=row.get("style"),
                 licence=row.get("licence"),
                 note=row.get("note"),
+                kind=kind,
             )
         )
     return sources
