@@ -13,7 +13,14 @@ import numpy as np
 from pipeline.core.ids import video_id_of_segment
 from pipeline.core.paths import AUDIO_FEATURES, CLEAN, CORPUS, METRICS, MOTION24, RAW, SEGMENTS, TRACKS
 from pipeline.core.storage import atomic_path, item_files, read_meta, write_json, write_parquet
-from pipeline.corpus.card import alignment_png, channel_stats, durations_csv, histogram_png, render_card
+from pipeline.corpus.card import (
+    alignment_png,
+    channel_stats,
+    durations_csv,
+    histogram_png,
+    render_card,
+    style_stats,
+)
 from pipeline.corpus.windows import FPS, SCHEMA_VERSION, Window, split_of, window_starts, windows_table
 from pipeline.ingest.catalog import read_index, read_ledger
 from pipeline.motion.motionfile import clip_frame_counts, read_motion
@@ -72,6 +79,7 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
                 meta = {"window_id": f"{clip.clip_id}_w{k:06d}", "split": split_of(seg["video_id"], val_fraction),
                         "video_id": seg["video_id"], "url": video.get("url", ""), "title": video.get("title", ""),
                         "channel": video.get("channel", ""), "style": video.get("style", ""),
+                        "tags": list(video.get("tags") or []),
                         "licence": video.get("licence", ""), "segment_id": seg_id, "clip_id": clip.clip_id,
                         "track_id": clip.track_id, "start_frame": k, "start_time": k / fps,
                         "segment_start": seg["start"], "tempo": feats.tempo,
@@ -168,7 +176,7 @@ def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, para
                       typical.meta["motion_beat_frames"], fps,
                       f"{typical.meta['window_id']}: beat-align score {typical.meta['beat_align_score']:.2f}")
     with atomic_path(root / CORPUS / "card.md") as tmp:
-        tmp.write_text(render_card(stats, ledger, card_params, totals, alignment))
+        tmp.write_text(render_card(stats, ledger, card_params, totals, alignment, style_stats(metas)))
     durations_csv(root / METRICS / "durations.csv", {"videos": series["source videos"],
                                                      "segments": series["trimmed segments"], "clips": clip_seconds})
     total = stats[-1] if stats else {}

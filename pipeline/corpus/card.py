@@ -122,8 +122,19 @@ def _alignment_text(a: dict | None) -> str:
             "not dance to the beat.")
 
 
+def style_stats(metas: list[dict]) -> list[dict]:
+    """Windows per style label (sources.csv's style column; "(none)" when empty), most first."""
+    counts: dict[str, dict[str, int]] = {}
+    for m in metas:
+        row = counts.setdefault(m.get("style") or "(none)", {"train": 0, "val": 0, "videos": set()})
+        row[m["split"]] += 1
+        row["videos"].add(m["video_id"])
+    return [{"style": style, "videos": len(r["videos"]), "windows_train": r["train"], "windows_val": r["val"]}
+            for style, r in sorted(counts.items(), key=lambda kv: (-(kv[1]["train"] + kv[1]["val"]), kv[0]))]
+
+
 def render_card(stats: list[dict], ledger: list[dict], params: dict, totals: dict,
-                alignment: dict | None = None) -> str:
+                alignment: dict | None = None, styles: list[dict] | None = None) -> str:
     window, hop = params["window_seconds"], params["hop_seconds"]
     fps = params.get("fps", 24)
     header = ("| channel | videos | minutes | trimmed segments | trimmed minutes | track ids / video | "
@@ -134,6 +145,8 @@ def render_card(stats: list[dict], ledger: list[dict], params: dict, totals: dic
     sources = "".join(f"| {r['video_id']} | {r['title'] or '-'} | {r['channel'] or '-'} | {r['licence'] or '-'} | "
                       f"{r['url']} |\n" for r in ledger if r["status"] == "ok")
     joints = ", ".join(f"{i} {n}" for i, n in enumerate(H36M17))
+    style_table = "".join(f"| {r['style']} | {r['videos']} | {r['windows_train']} | {r['windows_val']} |\n"
+                          for r in styles or [])
     return f"""# dance3d corpus
 
 3D dance motion synchronised with music features, cut into {window} s windows every {hop} s,
@@ -151,7 +164,8 @@ PyTorch loader is `pipeline.train.dataset.WindowDataset`. Each file's key-value 
 |---|---|---|
 | window_id | string | `<clip_id>_w<start_frame>` |
 | split | string | train or val (by video: a hash of video_id, so no video is in both) |
-| video_id, url, title, channel, style, licence | string | provenance of the source video |
+| video_id, url, title, channel, style, licence | string | provenance of the source video (style: the sources.csv label) |
+| tags | list of string | the site's tags for the video (from its listing or download) |
 | segment_id, clip_id, track_id | string, string, int32 | the trimmed segment, the cleaned clip (one dancer), its track |
 | start_frame, start_time | int32, float64 | first frame k of the window and k/{fps:g} s, on the segment clock |
 | segment_start | float64 | where the segment starts in the source video (s) |
@@ -185,6 +199,11 @@ resampled with a cubic spline. Audio was loudness-normalised to EBU R128 before 
 ## Statistics
 
 {header}{table}
+Windows per style (the `style` column; a style label per video, as the seed's Music2Dance uses):
+
+| style | videos | windows train | windows val |
+|---|---|---|---|
+{style_table}
 ![durations](durations.png)
 
 ## Sources, licences and attribution

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 
-SCHEMA_VERSION = 2  # 2: beat, downbeat and motion-beat frames, alignment scores; any frame rate
+SCHEMA_VERSION = 3  # 2: beat, downbeat and motion-beat frames, alignment scores; any frame rate. 3: tags
 FPS = 24  # the default corpus rate
 MFCC_DIMS = 39
 # A window built without beat analysis (tests, benchmarks) has no beats: empty lists, NaN scores.
@@ -45,7 +45,7 @@ def corpus_schema(window: int) -> pa.Schema:
     return pa.schema([
         ("window_id", pa.string()), ("split", pa.string()),
         ("video_id", pa.string()), ("url", pa.string()), ("title", pa.string()), ("channel", pa.string()),
-        ("style", pa.string()), ("licence", pa.string()),
+        ("style", pa.string()), ("tags", pa.list_(pa.string())), ("licence", pa.string()),
         ("segment_id", pa.string()), ("clip_id", pa.string()), ("track_id", pa.int32()),
         ("start_frame", pa.int32()), ("start_time", pa.float64()), ("segment_start", pa.float64()),
         ("motion", fixed(fixed(fixed(pa.float32(), 3), 17), window)),

@@ -12,6 +12,7 @@ import torch
 from torch.utils.data import DataLoader
 
 from pipeline.corpus.build import write_shards
+from pipeline.corpus.card import style_stats
 from pipeline.corpus.windows import Window, split_of, window_starts
 from pipeline.train.dataset import WindowDataset
 from pipeline.train.loop import TrainConfig, train_tsmt
@@ -50,7 +51,8 @@ def synthetic_windows(n_videos: int = 6, clips: int = 2, per_clip: int = 5, fram
                 mfcc = np.tile(np.sin(2 * np.pi * freq * t)[:, None], (1, 39)).astype(np.float32)
                 meta = {"window_id": f"{video}_{c}_w{w:03d}", "split": split_of(video, 0.3), "video_id": video,
                         "url": f"https://example.org/{video}", "title": "t", "channel": "ch", "style": "pop",
-                        "licence": "CC-BY", "segment_id": f"{video}_000", "clip_id": f"{video}_000_{c}_0",
+                        "tags": ["kpop", f"crew{v}"], "licence": "CC-BY", "segment_id": f"{video}_000",
+                        "clip_id": f"{video}_000_{c}_0",
                         "track_id": c + 1, "start_frame": w * 24, "start_time": w, "segment_start": 0.0,
                         "tempo": 60 * freq}
                 windows.append(Window(meta, motion, mfcc, np.zeros((frames, 12), np.float32),
@@ -89,11 +91,12 @@ def test_shards_round_trip_through_pyarrow_pandas_and_datasets(corpus) -> None:
         row = frame[frame.window_id == window_id].iloc[0]
         assert np.array_equal(np.stack([np.stack(f) for f in row.motion]), expected.motion)
         assert row.url == expected.meta["url"] and row.licence == "CC-BY"
+        assert list(row.tags) == expected.meta["tags"]
     for record in hf.select(range(3)):
         assert np.array_equal(np.array(record["motion"], np.float32), by_id[record["window_id"]].motion)
         assert np.array_equal(np.array(record["beat"], np.int8), by_id[record["window_id"]].beat)
     meta = pq.read_schema(files[0]).metadata[b"dance3d"]
-    assert b'"schema_version": 2' in meta and b'"fps": 24' in meta
+    assert b'"schema_version": 3' in meta and b'"fps": 24' in meta
 
 
 def test_loader_yields_every_window_once_per_epoch_across_two_workers(corpus) -> None:
@@ -131,3 +134,12 @@ def test_generation_is_causal() -> None:
     audio2 = audio.clone()
     audio2[:, 7:] = torch.randn(1, 3, 27)
     assert torch.allclose(full[:, :7], model(changed, audio2)[:, :7], atol=1e-5)  # the future does not leak
+
+
+def test_the_card_counts_windows_per_style() -> None:
+    metas = [{"style": "hip-hop", "split": "train", "video_id": "a"},
+             {"style": "hip-hop", "split": "val", "video_id": "b"},
+             {"style": "hip-hop", "split": "train", "video_id": "a"},
+             {"style": "", "split": "train", "video_id": "c"}]
+    assert style_stats(metas) == [{"style": "hip-hop", "videos": 2, "windows_train": 2, "windows_val": 1},
+                                  {"style": "(none)", "videos": 1, "windows_train": 1, "windows_val": 0}]
