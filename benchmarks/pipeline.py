@@ -46,8 +46,8 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-STAGES = ("discover", "download", "trim", "pose2d", "track", "clean", "train_lifter", "lift", "smooth", "resample",
-          "audio", "shard")
+STAGES = ("discover", "download", "propose_segments", "trim", "pose2d", "track", "clean", "train_lifter", "lift",
+          "smooth", "resample", "audio", "shard")
 NOT_PER_VIDEO = {"train_lifter"}
 LONG_PARTS = ("dance_single_music_musepose.mp4", "movement_single_speech_taiji.mp4", "dance_solo_384x496_30fps.mp4")
 

@@ -35,6 +35,7 @@ examples:
                               COCO keypoint AP, detection recall, PCK of the configured 2D models
   dance3d eval beats --audio song.ogg --beats song.beats
                               score the beat tracker against your annotations (mir_eval)
+  dance3d eval segments       score the proposed dance segments against annotations/segments.csv
   dance3d models fetch        download, convert and verify the default detector and pose model
   dance3d models convert-videopose3d pretrained_h36m_detectron_coco.bin models/lifter.onnx
                               use the official VideoPose3D weights as the lifter
@@ -96,7 +97,7 @@ def _parser() -> argparse.ArgumentParser:
     sample.add_argument("--corpus", type=Path, default=Path("data/corpus"), help="where the seed window comes from")
     sample.add_argument("--seed-frames", type=int, default=24, help="frames of the seed pose (default 24)")
     sample.add_argument("--temperature", type=float, default=0.0, help="0: most likely bins; > 0: sample")
-    evaluate = sub.add_parser("eval", help="measure quality on data you bring (pose2d, beats)",
+    evaluate = sub.add_parser("eval", help="measure quality on data you bring (pose2d, beats, segments)",
                               description="Quality measures against your own annotated data.")
     evaluate_sub = evaluate.add_subparsers(dest="what", required=True, metavar="WHAT")
     pose2d = evaluate_sub.add_parser(
@@ -131,6 +132,13 @@ def _parser() -> argparse.ArgumentParser:
     beats.add_argument("--audio", type=Path, required=True, help="any audio (or video) file ffmpeg reads")
     beats.add_argument("--beats", type=Path, required=True, help="the annotation file")
     beats.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
+    segments = evaluate_sub.add_parser(
+        "segments", help="proposed dance segments against the human rows of annotations/segments.csv",
+        description="Score the propose_segments stage's proposals (data/segment_proposals) against the human "
+                    "segments of every video that has both: segments found (IoU >= 0.5), proposals that are "
+                    "right, and the mean start and end errors in seconds, next to the baseline of the whole "
+                    "video as one segment. Propose for annotated videos too (the stage does) to measure.")
+    segments.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
     models = sub.add_parser("models", help="model utilities (fetch, convert-videopose3d)")
     models_sub = models.add_subparsers(dest="action", required=True, metavar="ACTION")
     fetch = models_sub.add_parser(
@@ -183,6 +191,10 @@ def _eval(root: Path, args: argparse.Namespace) -> int:
             from pipeline.pose.evaluate import format_table
 
             result = _eval_pose2d(root, args)
+        elif args.what == "segments":
+            from pipeline.ingest.propose import evaluate_project, format_table
+
+            result = evaluate_project(root)
         else:
             from pipeline.music.evaluate import evaluate_beats, format_table
 

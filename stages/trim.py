@@ -16,9 +16,9 @@ import pipeline.ingest.trim
 from pipeline.core.errors import InputErrors
 from pipeline.core.itemstage import StageReport, WorkItem, run_item_stage
 from pipeline.core.params import load_params, stage_params
-from pipeline.core.paths import ANNOTATIONS, RAW, SEGMENTS
+from pipeline.core.paths import ANNOTATIONS, RAW, SEGMENT_PROPOSALS, SEGMENTS
 from pipeline.core.stage import run_stage, setup_logging
-from pipeline.core.storage import code_fingerprint, fingerprint
+from pipeline.core.storage import code_fingerprint, fingerprint, item_files
 from pipeline.ingest.catalog import INDEX, INDEX_VERSION, read_index, read_ledger, write_index
 from pipeline.ingest.segments import plan_segments
 from pipeline.ingest.trim import PlanJob, TrimOptions, plan_job
@@ -33,10 +33,12 @@ def run(root: Path) -> None:
     raw_dir, seg_dir = root / RAW, root / SEGMENTS
     ledger = read_ledger(raw_dir)
     available = {r["video_id"]: r for r in ledger.values() if r["status"] == "ok"}
+    unannotated = str(params.get("unannotated", "skip"))
+    proposed = proposed_segments(root) if unannotated == "proposals" else {}
     try:
         plan = plan_segments(root / ANNOTATIONS, {v: r["duration"] for v, r in available.items()},
                              known_videos={r["video_id"] for r in ledger.values() if r["video_id"]},
-                             unannotated=str(params.get("unannotated", "skip")))
+                             unannotated=unannotated, proposed=proposed)
     except InputErrors as exc:
         for error in exc.errors:
             log.error("%s", error)
@@ -61,6 +63,17 @@ def run(root: Path) -> None:
     _remove_copies(seg_dir)
     run_item_stage("trim", items, plan_job, out_dirs=[seg_dir], params=params, up_to_date=up_to_date,
                    keep_files=frozenset({INDEX}), finish=write)
+
+
+def proposed_segments(root: Path) -> dict[str, list[tuple[float, float, str]]]:
+    """The propose_segments stage's proposals by video (none for a video it has not seen)."""
+    from pipeline.ingest.propose import read_proposals
+
+    out = {}
+    for path in item_files(root / SEGMENT_PROPOSALS):
+        found = read_proposals(path)
+        out[found["video_id"]] = [(s["start"], s["end"], f"proposed: {s['reason']}") for s in found["segments"]]
+    return out
 
 
 def _remove_copies(seg_dir: Path) -> None:

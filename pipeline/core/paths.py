@@ -7,6 +7,7 @@ TRACK_MANIFESTS = Path("manifests/tracks")
 ANNOTATIONS = Path("annotations/segments.csv")
 CATALOG = Path("data/catalog")
 RAW = Path("data/raw")
+SEGMENT_PROPOSALS = Path("data/segment_proposals")
 SEGMENTS = Path("data/segments")
 POSE2D = Path("data/pose2d")
 TRACKS = Path("data/tracks")
@@ -22,5 +23,6 @@ AUDIO_FEATURES = Path("data/audio_features")
 CORPUS = Path("data/corpus")
 
 # The folder holding each stage's _failures.parquet.
-FAILURE_DIRS = {"download": RAW, "trim": SEGMENTS, "pose2d": POSE2D, "track": TRACKS, "clean": CLEAN,
+FAILURE_DIRS = {"download": RAW, "propose_segments": SEGMENT_PROPOSALS, "trim": SEGMENTS,
+                "pose2d": POSE2D, "track": TRACKS, "clean": CLEAN,
                 "lift": POSE3D, "smooth": SMOOTH, "resample": MOTION24, "audio": AUDIO_FEATURES}

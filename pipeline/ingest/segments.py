@@ -19,7 +19,7 @@ from pipeline.core.timecode import parse_time
 
 REQUIRED = ("video_id", "start", "end")
 OPTIONAL = ("label", "note")
-UNANNOTATED_POLICIES = ("skip", "whole")
+UNANNOTATED_POLICIES = ("skip", "whole", "proposals")
 END_TOLERANCE = 0.05  # seconds an end may pass the video's end (container rounding); it is clamped
 
 
@@ -40,12 +40,15 @@ def plan_segments(
     *,
     known_videos: set[str] | None = None,
     unannotated: str = "skip",
+    proposed: Mapping[str, list[tuple[float, float, str]]] | None = None,
 ) -> list[SegmentSpec]:
     """Validate segments.csv against the downloaded videos and list the segments to cut.
 
     ``durations`` maps each *available* video to its duration; ``known_videos`` are all
     ids in the sources (a row for a known video whose download failed is skipped, not an
-    error). Every problem in the file is reported at once as InputErrors.
+    error). ``proposed``: video -> (start, end, reason) proposals, the segments of a video
+    without human rows when ``unannotated`` is "proposals" (human rows always win).
+    Every problem in the file is reported at once as InputErrors.
     """
     if unannotated not in UNANNOTATED_POLICIES:
         raise ValueError(f"trim.unannotated must be one of {UNANNOTATED_POLICIES}, not {unannotated!r}")
@@ -88,6 +91,10 @@ def plan_segments(
                                                f"({s0:.3f}-{e0:.3f} s) of the same video", r1.line))
         if not spans and unannotated == "whole" and video_id not in by_video:
             plan.append(SegmentSpec(segment_id(video_id, 0), video_id, 0.0, durations[video_id], "", "whole video"))
+        if not spans and unannotated == "proposals" and video_id not in by_video:
+            for k, (start, end, reason) in enumerate(sorted((proposed or {}).get(video_id, []))):
+                plan.append(SegmentSpec(segment_id(video_id, k), video_id, start, min(end, durations[video_id]),
+                                        "proposed", reason))
         for k, (start, end, row) in enumerate(spans):
             plan.append(SegmentSpec(segment_id(video_id, k), video_id, start, end,
                                     row.get("label"), row.get("note"), row.line))
