@@ -2,18 +2,11 @@
 // manifest rows, and saves them through the server, which runs the manifest checker.
 "use strict";
 
-const $ = (sel) => document.querySelector(sel);
 const state = { seg: null, rows: [], selected: 0, version: "", fps: 24, duration: 1, dirty: false };
 
 function segmentIdFromPath() {
   const m = location.pathname.match(/^\/segment\/([A-Za-z0-9_-]+)$/);
   return m ? m[1] : null;
-}
-
-async function api(path, options) {
-  const res = await fetch(path, options);
-  const body = await res.json().catch(() => ({}));
-  return { status: res.status, body };
 }
 
 async function showList() {
@@ -50,9 +43,7 @@ async function showSegment(id) {
 
 function now() { return Math.round($("#video").currentTime * 1000) / 1000; }
 
-function snap(t) {  // to the nearest frame time, so spans match the QC timecode
-  return Math.round(Math.round(t * state.fps) / state.fps * 1000) / 1000;
-}
+const snap = (t) => snapTo(t, state.fps);  // to the nearest frame time, so spans match the QC timecode
 
 function renderAll() { renderRows(); renderTimeline(); }
 
@@ -191,8 +182,6 @@ function showProblems(problems) {
   }
 }
 
-function setState(text, ok) { const s = $("#state"); s.textContent = text; s.className = ok ? "ok" : "bad"; }
-
 function bindButtons() {
   $("#set-start").onclick = actions.setStart;
   $("#set-end").onclick = actions.setEnd;
@@ -203,13 +192,9 @@ function bindButtons() {
   $("#save").onclick = actions.save;
   document.addEventListener("keydown", (e) => {
     if (e.target.tagName === "INPUT" || e.target.tagName === "SELECT") return;
-    const video = $("#video");
-    const step = e.shiftKey ? 1 : 1 / state.fps;
     if ((e.ctrlKey || e.metaKey) && e.key === "s") { e.preventDefault(); actions.save(); return; }
+    if (transportKey(e, $("#video"), state.fps, state.duration)) return;
     switch (e.key) {
-      case " ": e.preventDefault(); video.paused ? video.play() : video.pause(); break;
-      case "ArrowLeft": e.preventDefault(); video.currentTime = Math.max(0, video.currentTime - step); break;
-      case "ArrowRight": e.preventDefault(); video.currentTime = Math.min(state.duration, video.currentTime + step); break;
       case "ArrowUp": e.preventDefault(); select(state.selected - 1, false); break;
       case "ArrowDown": e.preventDefault(); select(state.selected + 1, false); break;
       case "Enter": select(state.selected, true); break;
