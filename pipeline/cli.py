@@ -26,7 +26,7 @@ examples:
   dance3d run trim            cut the annotated dance segments
   dance3d status              what has been downloaded and cut, and what failed
   dance3d retry pose2d        re-run only the items pose2d recorded as failed
-  dance3d review              open the annotators' review page at http://127.0.0.1:8765/
+  dance3d review              open the annotators' review page at http://127.0.0.1:8765/ (trim mode: /trim)
   dance3d manifests seed      propose a track manifest for every tracked segment without one
   dance3d manifests check     validate manifests: every problem as file:line: reason
   dance3d render data/motion24/musepose_dance_000.parquet musepose_dance_000_1_0 clip.mp4
@@ -51,12 +51,18 @@ def _parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="run one pipeline stage outside DVC",
                          description="Run one stage on the project in --root, as `dvc repro` would.")
     run.add_argument("stage", choices=STAGES, help="the stage to run")
-    review = sub.add_parser("review", help="a local web page for cleaning tracks (edits the CSV manifests)",
-                            description="Serve the review page: watch each segment's QC video, edit its track "
-                                        "manifest on a timeline and save it (checked like `dance3d manifests "
-                                        "check`). Loopback only unless --host says otherwise.")
+    review = sub.add_parser("review", help="a local web page for trimming videos and cleaning tracks",
+                            description="Serve the review page. Tracks mode (/): watch each segment's QC video, "
+                                        "edit its track manifest on a timeline and save it (checked like "
+                                        "`dance3d manifests check`). Trim mode (/trim): play each downloaded "
+                                        "video with its shots and proposed dance segments, and set, split, add "
+                                        "or delete its rows of annotations/segments.csv with the same keys "
+                                        "(checked as the trim stage checks). Loopback only unless --host says "
+                                        "otherwise.")
     review.add_argument("--port", type=int, default=8765)
     review.add_argument("--host", default="127.0.0.1", help="interface to listen on (default: loopback only)")
+    review.add_argument("--mode", choices=("tracks", "trim"), default="tracks",
+                        help="the page to print first (both are served)")
     retry = sub.add_parser("retry", help="re-run only the items a stage recorded as failed",
                            description="Re-run the items listed in the stage's _failures.parquet, leaving the "
                                        "others as they are (for download and trim, whose finished items are "
@@ -300,7 +306,10 @@ def _review(root: Path, args: argparse.Namespace) -> int:
     params = load_params(root / "params.yaml")
     app = ReviewApp(root, proposal_options(params), float(stage_params(params, "clean").get("min_clip_seconds", 2.0)))
     server = serve(app, args.host, args.port)
-    print(f"dance3d review: http://{args.host}:{server.server_address[1]}/  (Ctrl+C to stop)")
+    base = f"http://{args.host}:{server.server_address[1]}"
+    pages = [f"{base}/trim  (trim videos)", f"{base}/  (clean tracks)"]
+    print("dance3d review: " + "\n                ".join(pages if args.mode == "trim" else pages[::-1])
+          + "\n(Ctrl+C to stop)")
     try:
         server.serve_forever()
     except KeyboardInterrupt:

@@ -101,3 +101,46 @@ def plan_segments(
     if errors:
         raise InputErrors(sorted(errors, key=lambda e: e.line or 0))
     return plan
+
+
+def replace_video_rows(text: str, video_id: str, rows: list[tuple[float, float, str, str]]) -> tuple[str, list[int]]:
+    """``text`` of a segments.csv with the rows of ``video_id`` replaced by ``rows`` (start, end, label, note).
+
+    Every other line (comments, other videos, their formatting) is kept as it is; the new rows
+    take the place of the video's first old row (or go at the end), in start order. Returns the
+    new text and the 1-based lines of the new rows, so a checker's messages can be shown beside them.
+    A header without label or note gains them when a row needs them.
+    """
+    import csv
+    import io
+
+    from pipeline.core.tables import neutralise_cell
+
+    lines = text.splitlines(keepends=True) if text.strip() else ["video_id,start,end,label,note\n"]
+    lines = [ln if ln.endswith("\n") else ln + "\n" for ln in lines]
+    header_at = next(i for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#"))
+    header = [h.strip() for h in next(csv.reader([lines[header_at]]))]
+    wanted = [c for c in OPTIONAL if c not in header and any(r[2 + OPTIONAL.index(c)] for r in rows)]
+    out, insert_at = [], None
+    for i, line in enumerate(lines):
+        if i <= header_at or not line.strip() or line.lstrip().startswith("#"):
+            out.append(line)
+            continue
+        cells = next(csv.reader([line]))
+        if cells and cells[header.index("video_id")].strip() == video_id:
+            insert_at = len(out) if insert_at is None else insert_at
+            continue
+        out.append(line.rstrip("\n") + "," * len(wanted) + "\n" if wanted else line)
+    if wanted:
+        header = header + wanted
+        out[header_at] = ",".join(header) + "\n"
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    for start, end, label, note in sorted(rows):
+        values = {"video_id": video_id, "start": f"{start:.3f}", "end": f"{end:.3f}",
+                  "label": neutralise_cell(label), "note": neutralise_cell(note)}
+        writer.writerow([values.get(c, "") for c in header])
+    new = buf.getvalue().splitlines(keepends=True)
+    at = len(out) if insert_at is None else insert_at
+    out[at:at] = new
+    return "".join(out), [at + 1 + k for k in range(len(new))]

@@ -8,6 +8,13 @@ Routes (everything else, including any path that tries to leave the project, is 
   PUT  /api/segments/<id>       save rows: checked like `dance3d manifests check`, written
                                 atomically, refused (409) if the file changed since `version`
   GET  /qc/<id>.mp4             the QC video, rendered on first request (HTTP range requests, so the player can seek)
+
+Trim mode (the dance segments of each download, annotations/segments.csv):
+  GET  /trim                    the page (video list); /trim/<video_id> the same page, one video
+  GET  /api/videos              every downloaded video with its rows and proposals counts
+  GET  /api/videos/<id>         its rows (or the proposals), proposals, shots, per-second cues, version
+  PUT  /api/videos/<id>         replace its rows: checked like the trim stage, atomic, 409 when stale
+  GET  /raw/<id>                the downloaded video (range requests)
 """
 
 from __future__ import annotations
@@ -31,6 +38,7 @@ from pipeline.annotate.manifests import (
     write_manifest,
 )
 from pipeline.annotate.proposals import ProposalOptions, propose, track_stats
+from pipeline.annotate.review.trimming import TrimModel
 from pipeline.core.errors import Dance3dError
 from pipeline.core.ids import is_safe_id
 from pipeline.core.paths import TRACK_MANIFESTS, TRACKS
@@ -41,6 +49,8 @@ log = logging.getLogger(__name__)
 STATIC = Path(__file__).parent / "static"
 STATIC_TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8",
                 ".css": "text/css; charset=utf-8"}
+VIDEO_TYPES = {".mp4": "video/mp4", ".m4v": "video/mp4", ".mov": "video/mp4", ".webm": "video/webm",
+               ".mkv": "video/x-matroska", ".ogv": "video/ogg"}
 
 
 class ReviewApp:
@@ -52,6 +62,7 @@ class ReviewApp:
         self.min_clip_seconds = min_clip_seconds
         self.lock = threading.Lock()  # one save at a time
         self.qc_lock = threading.Lock()  # one QC render at a time (the player sends several range requests)
+        self.trim = TrimModel(self.root)
 
     def qc_video(self, seg_id: str) -> Path:
         """The segment's QC video, rendered on first request (and again when its tracks are newer)."""
@@ -164,6 +175,9 @@ def _same_rows(a: list[Span], b: list[Span]) -> bool:
 
 
 _SEGMENT = re.compile(r"/api/segments/([^/]+)")
+_VIDEO = re.compile(r"/api/videos/([^/]+)")
+_RAW = re.compile(r"/raw/([^/]+)")
+_TRIM_PAGE = re.compile(r"/trim/([^/]+)")
 _QC = re.compile(r"/qc/([^/]+)\.mp4")
 _PAGE = re.compile(r"/segment/([^/]+)")
 
@@ -198,10 +212,27 @@ def make_handler(app: ReviewApp) -> type[BaseHTTPRequestHandler]:
             seg_id = match.group(1)
             return seg_id if is_safe_id(seg_id) and app.tracks_path(seg_id).exists() else None
 
+        def _video_id(self, match: re.Match | None) -> str | None:
+            if match is None:
+                return None
+            video_id = match.group(1)
+            return video_id if is_safe_id(video_id) and app.trim.video_file(video_id) else None
+
         def do_GET(self) -> None:  # noqa: N802 (http.server's naming)
             path = self.path.split("?", 1)[0]
             if path == "/" or (path.startswith("/segment/") and self._segment_id(_PAGE.fullmatch(path))):
                 return self._send(HTTPStatus.OK, (STATIC / "index.html").read_bytes(), STATIC_TYPES[".html"])
+            if path == "/trim" or self._video_id(_TRIM_PAGE.fullmatch(path)):
+                return self._send(HTTPStatus.OK, (STATIC / "trim.html").read_bytes(), STATIC_TYPES[".html"])
+            if path == "/api/videos":
+                return self._json(HTTPStatus.OK, app.trim.videos())
+            video_id = self._video_id(_VIDEO.fullmatch(path))
+            if video_id:
+                return self._json(HTTPStatus.OK, app.trim.video(video_id))
+            video_id = self._video_id(_RAW.fullmatch(path))
+            if video_id:
+                media = app.trim.video_file(video_id)
+                return self._video(media, VIDEO_TYPES.get(media.suffix.lower(), "application/octet-stream"))
             if path.startswith("/static/"):
                 name = path[len("/static/"):]
                 target = STATIC / name
@@ -225,18 +256,20 @@ def make_handler(app: ReviewApp) -> type[BaseHTTPRequestHandler]:
         do_HEAD = do_GET
 
         def do_PUT(self) -> None:  # noqa: N802
-            seg_id = self._segment_id(_SEGMENT.fullmatch(self.path.split("?", 1)[0]))
-            if not seg_id:
+            path = self.path.split("?", 1)[0]
+            seg_id = self._segment_id(_SEGMENT.fullmatch(path))
+            video_id = None if seg_id else self._video_id(_VIDEO.fullmatch(path))
+            if not seg_id and not video_id:
                 return self._not_found()
             length = int(self.headers.get("Content-Length") or 0)
             try:
                 body = json.loads(self.rfile.read(length) or b"{}")
             except json.JSONDecodeError as exc:
                 return self._json(HTTPStatus.BAD_REQUEST, {"error": f"not JSON: {exc}"})
-            status, payload = app.save(seg_id, body)
+            status, payload = app.save(seg_id, body) if seg_id else app.trim.save(video_id, body)
             self._json(status, payload)
 
-        def _video(self, path: Path) -> None:
+        def _video(self, path: Path, content_type: str = "video/mp4") -> None:
             size = path.stat().st_size
             start, end = 0, size - 1
             match = re.fullmatch(r"bytes=(\d*)-(\d*)", self.headers.get("Range", ""))
@@ -257,7 +290,7 @@ def make_handler(app: ReviewApp) -> type[BaseHTTPRequestHandler]:
             extra = {"Accept-Ranges": "bytes"}
             if match:
                 extra["Content-Range"] = f"bytes {start}-{end}/{size}"
-            self._send(status, body, "video/mp4", extra)
+            self._send(status, body, content_type, extra)
 
     return Handler
 
