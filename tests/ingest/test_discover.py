@@ -8,10 +8,11 @@ from pathlib import Path
 import pytest
 
 from pipeline.core.errors import InputError
+from pipeline.core.storage import item_files
 from pipeline.ingest.catalog import read_discovered, read_index, read_ledger
 from pipeline.ingest.discover import DiscoverOptions, is_list_url, select
 from pipeline.ingest.sources import read_sources
-from stages import discover, download, trim
+from stages import discover, download, pose2d, propose_segments, trim
 from tests.conftest import Mirror, make_test_video, set_params
 
 FEED_HEAD = """<?xml version="1.0" encoding="UTF-8"?>
@@ -34,6 +35,7 @@ ITEMS = [
     ("routine-b", "Routine B (full dance)", "Tue, 03 Mar 2026 10:00:00 +0000", "00:02"),
     ("vlog-c", "Behind the scenes vlog", "Wed, 04 Mar 2026 10:00:00 +0000", "00:02"),
 ]
+STAGES = (discover, download, propose_segments, trim, pose2d)
 NEW_ITEM = ("routine-d", "Routine D (full dance)", "Thu, 05 Mar 2026 10:00:00 +0000", "00:02")
 
 
@@ -74,10 +76,12 @@ def test_a_feed_row_is_discovered_then_downloaded_with_its_metadata(project: Pat
     assert (ledger["routine-b"]["style"], ledger["routine-b"]["upload_date"]) == ("hip-hop", "20260303")
 
 
-def test_a_second_run_after_the_feed_gains_an_entry_processes_only_that_entry(project: Path, channel: Mirror) -> None:
+def test_a_second_run_after_the_feed_gains_an_entry_processes_only_that_entry(project: Path, channel: Mirror,
+                                                                             models_dir: Path, monkeypatch) -> None:
+    monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
     set_params(project, "trim", unannotated="whole")
     started = time.perf_counter()
-    for stage in (discover, download, trim):
+    for stage in STAGES:
         stage.run(project)
     first_run = time.perf_counter() - started
     catalogue = (project / "data/catalog/videos.parquet").read_bytes()
@@ -85,22 +89,25 @@ def test_a_second_run_after_the_feed_gains_an_entry_processes_only_that_entry(pr
     discover.run(project)  # the feed is unchanged: the same bytes, so DVC re-runs nothing downstream
     assert (project / "data/catalog/videos.parquet").read_bytes() == catalogue
 
-    stamps = {p.name: p.stat().st_mtime_ns for p in (project / "data/raw").glob("*.mp4")}
+    outputs = [*(project / "data/raw").glob("*.mp4"), *item_files(project / "data/pose2d"),
+               *item_files(project / "data/segment_proposals")]
+    stamps = {p: p.stat().st_mtime_ns for p in outputs}
     channel.requests.clear()
     channel.files["/feed.xml"] = feed(channel.url, [NEW_ITEM] + ITEMS)  # newest first, as channels list
     started = time.perf_counter()
-    for stage in (discover, download, trim):
+    for stage in STAGES:
         stage.run(project)
     second_run = time.perf_counter() - started
 
     rows = read_discovered(project / "data/catalog")[f"{channel.url}/feed.xml"]
     assert [r["video_id"] for r in rows] == ["routine-a", "routine-b", "vlog-c", "routine-d"]  # order kept
     assert {p for p in channel.requests if p.startswith("/v/")} == {"/v/routine-d.mp4"}  # sniffed, then fetched
-    assert {p.name: p.stat().st_mtime_ns for p in (project / "data/raw").glob("*.mp4") if p.name in stamps} == stamps
+    assert {p: p.stat().st_mtime_ns for p in stamps} == stamps  # downloads, proposals, 2D poses untouched
+    assert (project / "data/pose2d/routine-d_000.parquet").exists()
     after = read_index(project / "data/segments")
     assert sorted(after) == ["routine-a_000", "routine-b_000", "routine-d_000", "vlog-c_000"]
     assert {k: after[k] for k in segments} == segments  # the old segments are untouched
-    print(f"discover+download+trim of 3 feed videos {first_run:.2f} s; of the one new entry {second_run:.2f} s")
+    print(f"discover to pose2d: 3 feed videos {first_run:.2f} s; the one new entry {second_run:.2f} s")
 
 
 def test_filters_choose_entries_and_say_why_without_the_network(project: Path, channel: Mirror) -> None:
