@@ -12,26 +12,35 @@ from pipeline.ingest.propose import ProposeOptions, Timeline, boundary_errors, p
 from stages import download, propose_segments, trim
 from tests.conftest import ffmpeg, set_params
 
-# (file, seconds used, what it is): the dance is the third part; the cuts are at 8, 16 and 28 s.
-PARTS = [("videos/movement_single_speech_taiji.mp4", 8, "one person moving, over speech"),
-         ("videos/musicians_trio_music_raga.mp4", 8, "three seated musicians, music"),
-         ("videos/dance_single_music_musepose.mp4", 12, "one dancer, music")]
-CARD_SECONDS = 4  # then a silent title card
+# (file or "card", seconds used): the dance is the third part; the cuts are at 8, 16 and 28 s.
+PARTS = [("videos/movement_single_speech_taiji.mp4", 8),   # one person moving, over speech
+         ("videos/musicians_trio_music_raga.mp4", 8),      # three seated musicians, music
+         ("videos/dance_single_music_musepose.mp4", 12),   # one dancer, music
+         ("card", 4)]                                      # a silent title card
 DANCE = (16.0, 28.0)
 
 
-def assemble(media_dir: Path, out: Path) -> Path:
-    """The parts at 640x360 (letterboxed), 25 fps, 44.1 kHz stereo, then a silent title card."""
+def assemble(media_dir: Path, out: Path, parts: list[tuple[str, float]] = PARTS) -> Path:
+    """The parts one after the other at 640x360 (letterboxed), 25 fps, 44.1 kHz stereo; "card" is a
+    plain-colour title card over silence."""
     args, chains = [], []
-    for i, (name, seconds, _) in enumerate(PARTS):
-        args += ["-t", str(seconds), "-i", str(media_dir / name)]
-        chains.append(f"[{i}:v]scale=640:360:force_original_aspect_ratio=decrease,pad=640:360:(ow-iw)/2:(oh-ih)/2,"
-                      f"fps=25,setsar=1,format=yuv420p[v{i}];[{i}:a]aresample=44100,aformat=channel_layouts=stereo[a{i}]")
-    n = len(PARTS)
-    args += ["-f", "lavfi", "-t", str(CARD_SECONDS), "-i", "color=c=0x203060:s=640x360:r=25",
-             "-f", "lavfi", "-t", str(CARD_SECONDS), "-i", "anullsrc=r=44100:cl=stereo"]
-    chains.append(f"[{n}:v]format=yuv420p,setsar=1[v{n}]")
-    chains.append("".join(f"[v{i}][a{i}]" for i in range(n)) + f"[v{n}][{n + 1}:a]concat=n={n + 1}:v=1:a=1[v][a]")
+    for i, (name, seconds) in enumerate(parts):
+        if name == "card":
+            args += ["-f", "lavfi", "-t", str(seconds), "-i", "color=c=0x203060:s=640x360:r=25",
+                     "-f", "lavfi", "-t", str(seconds), "-i", "anullsrc=r=44100:cl=stereo"]
+        else:
+            args += ["-t", str(seconds), "-i", str(media_dir / name)]
+    n = 0
+    for i, (name, _) in enumerate(parts):
+        if name == "card":
+            chains.append(f"[{n}:v]format=yuv420p,setsar=1[v{i}];[{n + 1}:a]anull[a{i}]")
+            n += 2
+        else:
+            chains.append(f"[{n}:v]scale=640:360:force_original_aspect_ratio=decrease,pad=640:360:(ow-iw)/2:"
+                          f"(oh-ih)/2,fps=25,setsar=1,format=yuv420p[v{i}];"
+                          f"[{n}:a]aresample=44100,aformat=channel_layouts=stereo[a{i}]")
+            n += 1
+    chains.append("".join(f"[v{i}][a{i}]" for i in range(len(parts))) + f"concat=n={len(parts)}:v=1:a=1[v][a]")
     ffmpeg(*args, "-filter_complex", ";".join(chains), "-map", "[v]", "-map", "[a]", "-c:v", "libx264",
            "-preset", "veryfast", "-crf", "23", "-c:a", "aac", str(out))
     return out
