@@ -151,9 +151,10 @@ def _parser() -> argparse.ArgumentParser:
         "fetch", help="download the default models from their sources, checksum and output verified",
         description="Download each model from its source (sha256 checked), convert it where the source is "
                     "not ONNX (MoveNet: Google's TF-Hub TFLite; BlazePose: the TFLite in the pinned mediapipe "
-                    "wheel from PyPI, sha256 checked; both with tf2onnx in a throw-away virtual "
-                    "environment; needs pip and a few minutes), and verify the result by its outputs on a "
-                    "fixed test card. DANCE3D_DOWNLOAD_MIRROR=<base url> fetches https://host/path from "
+                    "wheel from PyPI, sha256 checked; both with tf2onnx in a virtual environment "
+                    "of their own, built once in ~/.cache/dance3d/converters; needs pip and a few minutes), "
+                    "and verify the result by its outputs on a fixed test card. "
+                    "DANCE3D_DOWNLOAD_MIRROR=<base url> fetches https://host/path from "
                     "<base url>/host/path instead.")
     fetch.add_argument("names", nargs="*", help="registry names (default: the detector and pose model in params.yaml)")
     fetch.add_argument("--to", type=Path, default=None, help="target folder (default: the project's models/)")

@@ -74,8 +74,8 @@ def test_a_model_that_computes_something_else_fails_verification(tmp_path: Path,
 
 
 @pytest.mark.slow
-def test_movenet_is_converted_from_googles_tflite_in_a_throwaway_environment(tmp_path: Path, models_dir: Path,
-                                                                              mirror) -> None:
+def test_movenet_is_converted_from_googles_tflite_in_an_environment_of_its_own(tmp_path: Path, models_dir: Path,
+                                                                               mirror) -> None:
     route = ROUTES["movenet-lightning"][0]
     mirror({_mirror_path(route.url): (models_dir / "movenet_singlepose_lightning_int8_4.tflite").read_bytes()})
     path = fetch_model("movenet-lightning", tmp_path / "models")  # raises unless its outputs match the reference

