@@ -48,6 +48,7 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     # The pipeline's mechanics are under test here, not the lifter's accuracy: train briefly.
     set_params(root, "train_lifter", steps=150, channels=64)
     set_params(root, "train", steps=40)
+    set_params(root, "propose_segments", sample_fps=2.0)  # its own tests measure it at the default
 
     first = _dvc(root, "repro")
     assert first.returncode == 0, first.stderr[-3000:]
@@ -58,6 +59,8 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     index = list(read_index(root / "data/segments").values())
     assert [r["segment_id"] for r in index] == ["musepose_dance_000", "solo_dance_000", "solo_dance_001", "taiji_000"]
     assert all((root / "data/raw" / r["source"]).exists() for r in index)  # segments are views, not copies
+    proposals = sorted(p.stem for p in (root / "data/segment_proposals").glob("[!_]*.parquet"))
+    assert proposals == sorted(r["video_id"] for r in ledger)  # every download, annotated or not
     assert not list((root / "data/segments").glob("*.mp4")) and not (root / "data/qc").exists()
 
     for seg in index:
