@@ -7,13 +7,31 @@ from pathlib import Path
 import pyarrow.parquet as pq
 
 from pipeline.core.failures import FAILURES_FILE, read_failures
-from pipeline.core.paths import AUDIO_FEATURES, CLEAN, CORPUS, MOTION24, POSE2D, POSE3D, RAW, SEGMENTS, SMOOTH, TRACKS
+from pipeline.core.paths import (
+    AUDIO_FEATURES,
+    CATALOG,
+    CLEAN,
+    CORPUS,
+    MOTION24,
+    POSE2D,
+    POSE3D,
+    RAW,
+    SEGMENT_PROPOSALS,
+    SEGMENTS,
+    SMOOTH,
+    TRACKS,
+)
 from pipeline.core.storage import item_files
-from pipeline.ingest.catalog import read_index, read_ledger
+from pipeline.ingest.catalog import read_discovered, read_index, read_ledger
 
 
 def summarise(root: Path) -> str:
     lines: list[str] = []
+    lists = read_discovered(root / CATALOG)
+    if lists:
+        videos = [r for rows in lists.values() for r in rows]
+        lines.append(f"discover: {len(lists)} channels/playlists/feeds, {len(videos)} videos listed, "
+                     f"{sum(r['selected'] for r in videos)} selected by the filters")
     rows = list(read_ledger(root / RAW).values())
     if rows:
         counts: dict[str, int] = {}
@@ -27,6 +45,14 @@ def summarise(root: Path) -> str:
                 lines.append(f"  {r['status']:9} {r['video_id'] or '-':20} {r['error_class']}: {r['error_message']}")
     else:
         lines.append("download: not run yet (dance3d run download, or dvc repro)")
+    proposed = item_files(root / SEGMENT_PROPOSALS)
+    if proposed:
+        from pipeline.ingest.propose import read_proposals
+
+        found = [read_proposals(f) for f in proposed]
+        seconds = sum(s["end"] - s["start"] for f in found for s in f["segments"])
+        lines.append(f"propose_segments: {sum(len(f['segments']) for f in found)} proposed dance segments "
+                     f"({seconds / 60:.1f} min) in {len(found)} videos; review them at /trim (dance3d review)")
     segs = list(read_index(root / SEGMENTS).values())
     if segs:
         minutes = sum(s["frames"] / s["fps"] for s in segs) / 60

@@ -164,3 +164,10 @@ def test_list_rows_are_recognised_and_checked(project: Path) -> None:
     path.write_text("url,kind\nhttps://example.org/feed.xml,channel\n")
     with pytest.raises(InputError, match=r"sources.csv:2: kind 'channel' is not one of video, list"):
         read_sources(path, base_dir=project)
+
+
+def test_status_counts_what_discovery_found(project: Path, channel: Mirror) -> None:
+    from pipeline.status import summarise
+
+    discover.run(project)
+    assert "discover: 1 channels/playlists/feeds, 3 videos listed, 3 selected by the filters" in summarise(project)

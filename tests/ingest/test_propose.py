@@ -137,3 +137,9 @@ def test_eval_segments_scores_proposals_against_human_rows_beside_the_whole_vide
     finally:
         annotations.unlink()
     assert "| assembled | 1 | 1 | 1 | 1 | 0.0 | 0.0 | 16.0 / 4.0 |" in out
+
+
+def test_status_counts_the_proposals(proposed_project: Path) -> None:
+    from pipeline.status import summarise
+
+    assert "propose_segments: 1 proposed dance segments (0.2 min) in 1 videos" in summarise(proposed_project)
