@@ -4,11 +4,6 @@
 
 const state = { seg: null, rows: [], selected: 0, version: "", fps: 24, duration: 1, dirty: false };
 
-function segmentIdFromPath() {
-  const m = location.pathname.match(/^\/segment\/([A-Za-z0-9_-]+)$/);
-  return m ? m[1] : null;
-}
-
 async function showList() {
   $("#list-view").hidden = false;
   const { body } = await api("/api/segments");
@@ -109,21 +104,6 @@ function renderTimeline() {
   drawPlayhead();
 }
 
-function drawPlayhead() {
-  const t = $("#video").currentTime || 0;
-  const head = $("#playhead");
-  if (head) head.style.left = `${(100 * t) / state.duration}%`;
-  $("#now").textContent = t.toFixed(3);
-  $("#frame").textContent = Math.round(t * state.fps);
-}
-
-function select(i, jump) {
-  if (!state.rows.length) return;
-  state.selected = Math.max(0, Math.min(state.rows.length - 1, i));
-  if (jump) $("#video").currentTime = state.rows[state.selected].start;
-  renderAll();
-}
-
 function changed() { state.dirty = true; setState("unsaved changes", true); renderAll(); }
 
 function current() { return state.rows[state.selected]; }
@@ -182,34 +162,9 @@ function showProblems(problems) {
   }
 }
 
-function bindButtons() {
-  $("#set-start").onclick = actions.setStart;
-  $("#set-end").onclick = actions.setEnd;
-  $("#split").onclick = actions.split;
-  $("#toggle").onclick = actions.toggle;
-  $("#add").onclick = actions.add;
-  $("#remove").onclick = actions.remove;
-  $("#save").onclick = actions.save;
-  document.addEventListener("keydown", (e) => {
-    if (e.target.tagName === "INPUT" || e.target.tagName === "SELECT") return;
-    if ((e.ctrlKey || e.metaKey) && e.key === "s") { e.preventDefault(); actions.save(); return; }
-    if (transportKey(e, $("#video"), state.fps, state.duration)) return;
-    switch (e.key) {
-      case "ArrowUp": e.preventDefault(); select(state.selected - 1, false); break;
-      case "ArrowDown": e.preventDefault(); select(state.selected + 1, false); break;
-      case "Enter": select(state.selected, true); break;
-      case "[": actions.setStart(); break;
-      case "]": actions.setEnd(); break;
-      case "s": actions.split(); break;
-      case "k": actions.toggle(); break;
-      case "a": actions.add(); break;
-      case "Delete": actions.remove(); break;
-      default: return;
-    }
-  });
-  window.addEventListener("beforeunload", (e) => { if (state.dirty) { e.preventDefault(); e.returnValue = ""; } });
-}
-
-bindButtons();
-const id = segmentIdFromPath();
+bindEditing(state, actions, select,
+  { "#set-start": "setStart", "#set-end": "setEnd", "#split": "split", "#toggle": "toggle", "#add": "add",
+    "#remove": "remove", "#save": "save" },
+  { k: "toggle" });
+const id = idFromPath("segment");
 if (id) showSegment(id); else showList();

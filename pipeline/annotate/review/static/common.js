@@ -1,5 +1,6 @@
 // Shared by both review pages (tracks: app.js, trim: trim.js): DOM lookup, the JSON API, the
-// state line, and the player's transport keys.
+// state line, the playhead, row selection and the editing keys. Each page script defines the
+// globals these use: `state` (rows, selected, fps, duration, dirty) and `renderAll()`.
 "use strict";
 
 const $ = (sel) => document.querySelector(sel);
@@ -25,4 +26,47 @@ function transportKey(e, video, fps, duration) {
     case "ArrowRight": e.preventDefault(); video.currentTime = Math.min(duration, video.currentTime + step); return true;
     default: return false;
   }
+}
+
+// The editing keys of both pages (trim mode uses the same keys as track cleaning); `extra`
+// adds a page's own (key -> action name). `select(i, jump)` moves the selected row.
+const EDIT_KEYS = { "[": "setStart", "]": "setEnd", s: "split", a: "add", Delete: "remove" };
+
+function bindEditing(state, actions, select, buttons, extra) {
+  for (const [sel, name] of Object.entries(buttons)) $(sel).onclick = actions[name];
+  const keys = { ...EDIT_KEYS, ...extra };
+  document.addEventListener("keydown", (e) => {
+    if (e.target.tagName === "INPUT" || e.target.tagName === "SELECT") return;
+    if ((e.ctrlKey || e.metaKey) && e.key === "s") { e.preventDefault(); actions.save(); return; }
+    if (transportKey(e, $("#video"), state.fps, state.duration)) return;
+    if (e.key === "ArrowUp" || e.key === "ArrowDown") {
+      e.preventDefault();
+      select(state.selected + (e.key === "ArrowUp" ? -1 : 1), false);
+    } else if (e.key === "Enter") {
+      select(state.selected, true);
+    } else if (keys[e.key]) {
+      actions[keys[e.key]]();
+    }
+  });
+  window.addEventListener("beforeunload", (e) => { if (state.dirty) { e.preventDefault(); e.returnValue = ""; } });
+}
+
+function idFromPath(prefix) {  // "/segment/<id>" or "/trim/<id>" -> id, else null
+  const m = location.pathname.match(new RegExp(`^/${prefix}/([A-Za-z0-9_-]+)$`));
+  return m ? m[1] : null;
+}
+
+function drawPlayhead() {
+  const t = $("#video").currentTime || 0;
+  const head = $("#playhead");
+  if (head) head.style.left = `${(100 * t) / state.duration}%`;
+  $("#now").textContent = t.toFixed(3);
+  $("#frame").textContent = Math.round(t * state.fps);
+}
+
+function select(i, jump) {
+  if (!state.rows.length) return;
+  state.selected = Math.max(0, Math.min(state.rows.length - 1, i));
+  if (jump) $("#video").currentTime = state.rows[state.selected].start;
+  renderAll();
 }

@@ -5,11 +5,6 @@
 
 const state = { video: null, rows: [], selected: 0, version: "", fps: 25, duration: 1, dirty: false, problems: [] };
 
-function videoIdFromPath() {
-  const m = location.pathname.match(/^\/trim\/([A-Za-z0-9_-]+)$/);
-  return m ? m[1] : null;
-}
-
 async function showList() {
   $("#list-view").hidden = false;
   const { body } = await api("/api/videos");
@@ -128,21 +123,6 @@ function renderTimeline() {
   drawPlayhead();
 }
 
-function drawPlayhead() {
-  const t = $("#video").currentTime || 0;
-  const head = $("#playhead");
-  if (head) head.style.left = pct(t);
-  $("#now").textContent = t.toFixed(3);
-  $("#frame").textContent = Math.round(t * state.fps);
-}
-
-function select(i, jump) {
-  if (!state.rows.length) return;
-  state.selected = Math.max(0, Math.min(state.rows.length - 1, i));
-  if (jump) $("#video").currentTime = state.rows[state.selected].start;
-  renderAll();
-}
-
 function changed() { state.dirty = true; setState("unsaved changes", true); renderAll(); }
 
 function sortRows() {  // rows in start order, the selection kept on the same row
@@ -222,35 +202,9 @@ function showProblems() {
   }
 }
 
-function bindButtons() {
-  $("#set-start").onclick = actions.setStart;
-  $("#set-end").onclick = actions.setEnd;
-  $("#split").onclick = actions.split;
-  $("#add").onclick = actions.add;
-  $("#remove").onclick = actions.remove;
-  $("#accept").onclick = actions.accept;
-  $("#accept-all").onclick = actions.acceptAll;
-  $("#save").onclick = actions.save;
-  document.addEventListener("keydown", (e) => {
-    if (e.target.tagName === "INPUT") return;
-    if ((e.ctrlKey || e.metaKey) && e.key === "s") { e.preventDefault(); actions.save(); return; }
-    if (transportKey(e, $("#video"), state.fps, state.duration)) return;
-    switch (e.key) {
-      case "ArrowUp": e.preventDefault(); select(state.selected - 1, false); break;
-      case "ArrowDown": e.preventDefault(); select(state.selected + 1, false); break;
-      case "Enter": select(state.selected, true); break;
-      case "[": actions.setStart(); break;
-      case "]": actions.setEnd(); break;
-      case "s": actions.split(); break;
-      case "a": actions.add(); break;
-      case "p": actions.accept(); break;
-      case "Delete": actions.remove(); break;
-      default: return;
-    }
-  });
-  window.addEventListener("beforeunload", (e) => { if (state.dirty) { e.preventDefault(); e.returnValue = ""; } });
-}
-
-bindButtons();
-const videoId = videoIdFromPath();
+bindEditing(state, actions, select,
+  { "#set-start": "setStart", "#set-end": "setEnd", "#split": "split", "#add": "add", "#remove": "remove",
+    "#accept": "accept", "#accept-all": "acceptAll", "#save": "save" },
+  { p: "accept" });
+const videoId = idFromPath("trim");
 if (videoId) showVideo(videoId); else showList();
