@@ -99,7 +99,7 @@ def test_low_confidence_joints_are_interpolated_over_time() -> None:
 
 @pytest.fixture(scope="module")
 def tiny_lifter(mocap_dir: Path, tmp_path_factory) -> tuple:
-    cfg = LifterConfig(steps=700, channels=128, sources=("bandai_namco_1", "perfume", "dancedb_ucy",
+    cfg = LifterConfig(steps=400, channels=128, sources=("bandai_namco_1", "perfume", "dancedb_ucy",
                                                          "cmu_subject05_iclone"))
     train, val = split(load_mocap(mocap_dir, cfg), cfg.holdout)
     result = train_lifter(cfg, train, val)

@@ -41,6 +41,7 @@ def new_project(root: Path, media_dir: Path, videos: list[tuple[str, str]], anno
     shutil.copy(PROJECT / "params.yaml", root / "params.yaml")
     write_sources(root, [(vid, media_dir / "videos" / name) for vid, name in videos])
     (root / "annotations/segments.csv").write_text("video_id,start,end\n" + annotations)
+    set_params(root, "trim", fps=10)  # a third of the solo clip's frames: resuming is under test, not pose
     return root
 
 
