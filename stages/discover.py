@@ -27,7 +27,6 @@ log = logging.getLogger("dance3d.discover")
 
 def options(params: dict) -> tuple[DiscoverOptions, DownloadOptions]:
     section = params.get("discover") or {}
-    dl = params.get("download") or {}
     return (
         DiscoverOptions(
             max_videos=int(section.get("max_videos", 0) or 0),
@@ -40,13 +39,7 @@ def options(params: dict) -> tuple[DiscoverOptions, DownloadOptions]:
             stop_after_known=int(section.get("stop_after_known", 10)),
         ),
         # The same politeness as downloads: retries, back-off, pauses and time-outs.
-        DownloadOptions(
-            retries=int(dl.get("retries", 3)),
-            backoff_seconds=float(dl.get("backoff_seconds", 2.0)),
-            sleep_interval=float(dl.get("sleep_interval", 0.0)),
-            allow_file_urls=bool(dl.get("allow_file_urls", True)),
-            socket_timeout=float(dl.get("socket_timeout", 30.0)),
-        ),
+        DownloadOptions.from_params(params.get("download") or {}),
     )
 
 

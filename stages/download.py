@@ -61,14 +61,7 @@ def expand_sources(root: Path, sources: list[Source]) -> list[Source]:
 
 def run(root: Path) -> None:
     params = stage_params(load_params(root / "params.yaml"), "download")
-    opts = DownloadOptions(
-        retries=int(params.get("retries", 3)),
-        backoff_seconds=float(params.get("backoff_seconds", 2.0)),
-        sleep_interval=float(params.get("sleep_interval", 0.0)),
-        format=str(params.get("format", DownloadOptions.format)),
-        allow_file_urls=bool(params.get("allow_file_urls", True)),
-        socket_timeout=float(params.get("socket_timeout", 30.0)),
-    )
+    opts = DownloadOptions.from_params(params)
     sources = expand_sources(root, read_sources(root / SOURCES, base_dir=root, allow_file_urls=opts.allow_file_urls))
     raw_dir = root / RAW
     raw_dir.mkdir(parents=True, exist_ok=True)

@@ -74,6 +74,18 @@ class DownloadOptions:
     allow_file_urls: bool = True
     socket_timeout: float = 30.0
 
+    @staticmethod
+    def from_params(params: dict) -> "DownloadOptions":
+        """From params.yaml's ``download`` section (the discover stage reads it too: the same politeness)."""
+        return DownloadOptions(
+            retries=int(params.get("retries", 3)),
+            backoff_seconds=float(params.get("backoff_seconds", 2.0)),
+            sleep_interval=float(params.get("sleep_interval", 0.0)),
+            format=str(params.get("format", DownloadOptions.format)),
+            allow_file_urls=bool(params.get("allow_file_urls", True)),
+            socket_timeout=float(params.get("socket_timeout", 30.0)),
+        )
+
 
 def classify_error(message: str) -> str:
     """Map a downloader message to a stable error class for the ledger."""

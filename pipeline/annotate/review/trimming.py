@@ -117,14 +117,13 @@ class TrimModel:
         """The trim stage's checks on ``text``. Problems on the video's new ``lines`` name their row
         (0-based) and block the save, as does a problem of the whole file (its header); problems
         on other videos' lines have row None and do not block this save (the trim stage reports them)."""
-        downloads = self.downloads()
-        ledger = read_ledger(self.root / RAW)
+        ledger = read_ledger(self.root / RAW).values()
         with tempfile.TemporaryDirectory() as tmp:
             candidate = Path(tmp) / "segments.csv"
             candidate.write_text(text, encoding="utf-8")
-            try:
-                plan_segments(candidate, {v: r["duration"] for v, r in downloads.items()},
-                              known_videos={r["video_id"] for r in ledger.values() if r["video_id"]})
+            try:  # the trim stage's own call (stages/trim.py)
+                plan_segments(candidate, {r["video_id"]: r["duration"] for r in ledger if r["status"] == "ok"},
+                              known_videos={r["video_id"] for r in ledger if r["video_id"]})
             except InputErrors as exc:
                 errors = exc.errors
             except InputError as exc:  # the file as a whole (its header)
