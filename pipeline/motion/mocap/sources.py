@@ -15,7 +15,9 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from pipeline.core.errors import InputError
 from pipeline.motion.mocap.bvh import forward_kinematics, read_bvh
+from pipeline.motion.mocap.markers import h36m_from_markers, read_c3d
 from pipeline.motion.mocap.skeleton import coco_from_h36m, head_frame, stature
 
 
@@ -66,7 +68,7 @@ BVH_SOURCES = {
 }
 BVH_SOURCES["bandai_namco_2_subset"] = BvhSource("bandai_namco_2_subset", *list(
     vars(BVH_SOURCES["bandai_namco_1"]).values())[1:])
-SOURCES = (*BVH_SOURCES, "deepmimic", "tang2018_ballroom")
+SOURCES = (*BVH_SOURCES, "deepmimic", "tang2018_ballroom", "choreonet_c3d")
 
 
 def _to_canonical(points: np.ndarray, unit: float, z_up: bool) -> np.ndarray:
@@ -166,6 +168,14 @@ def load_tang(path: Path) -> MocapSequence:
                          h36m, coco_from_h36m(h36m))
 
 
+def load_markers(path: Path) -> MocapSequence:
+    """A C3D file of Plug-in-Gait markers (ChoreoNet), joint centres estimated (markers.py)."""
+    markers, rate = read_c3d(path)
+    h36m = h36m_from_markers(markers)
+    folder = Path(path).parent.name
+    return MocapSequence(f"{folder}/{Path(path).stem}", folder, rate, h36m, coco_from_h36m(h36m))
+
+
 def load_source(root: Path, source: str, include_waltz: bool = False) -> list[MocapSequence]:
     """Every sequence of one source folder under ``root`` (the mocap folder)."""
     folder = Path(root) / source
@@ -176,7 +186,41 @@ def load_source(root: Path, source: str, include_waltz: bool = False) -> list[Mo
     if source == "tang2018_ballroom":
         # Waltz files are temporally subsampled (about 6 fps effective): left out unless asked for.
         return [load_tang(p) for p in sorted(folder.glob("*.npz")) if include_waltz or "_W_" not in p.name]
+    if source == "choreonet_c3d":
+        return [load_markers(p) for p in sorted(folder.glob("*.c3d"))]
     raise ValueError(f"unknown mocap source {source!r}; known: {', '.join(SOURCES)}")
+
+
+def load_joints_npz(path: Path) -> MocapSequence:
+    """A plain joint-position file: ``joints`` (T x 17 x 3, Human3.6M order, metres, y up) and ``fps``."""
+    try:
+        data = np.load(path)
+        joints, fps = np.asarray(data["joints"], np.float64), float(data["fps"])
+    except (OSError, ValueError, KeyError) as exc:
+        raise InputError(path, f"not a joint-position file (needs 'joints' T x 17 x 3 and 'fps'): {exc}") from None
+    if joints.ndim != 3 or joints.shape[1:] != (17, 3) or len(joints) < 2 or not np.isfinite(joints).all():
+        raise InputError(path, f"'joints' must be finite, T x 17 x 3 with T >= 2, not {joints.shape}")
+    folder = Path(path).parent.name
+    return MocapSequence(f"{folder}/{Path(path).stem}", folder, fps, joints, coco_from_h36m(joints))
+
+
+def load_folder(folder: Path) -> list[MocapSequence]:
+    """Every sequence under a folder that is one of the known sources, holds known sources, or
+    holds Plug-in-Gait C3D files and joint-position ``.npz`` files (``load_joints_npz``)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(folder, "no such motion-capture folder")
+    if folder.name in SOURCES:
+        return load_source(folder.parent, folder.name)
+    known = [s for s in SOURCES if (folder / s).is_dir()]
+    if known:
+        return [seq for s in known for seq in load_source(folder, s)]
+    sequences = [load_markers(p) for p in sorted(folder.glob("*.c3d"))]
+    sequences += [load_joints_npz(p) for p in sorted(folder.glob("*.npz"))]
+    if not sequences:
+        raise InputError(folder, f"no motion capture found: expected one of the known source folders "
+                                 f"({', '.join(SOURCES)}), Plug-in-Gait .c3d files or .npz joint files")
+    return sequences
 
 
 def resample(seq: MocapSequence, fps: float) -> MocapSequence:
