@@ -13,8 +13,9 @@ video the stages work on; download counts the downloaded duration), CPU use in c
 (user + system time of the stage and its children / wall), peak memory (resident set of the
 stage's whole process tree, sampled every 50 ms) and bytes written per minute of source
 video. The footprint line sums everything under data/ except the downloads and the corpus,
-against the bytes downloaded. train_lifter is run (with few steps) for the lift stage to have a
-model, but counts in no total: it does not depend on the videos.
+against the bytes downloaded. train_lifter is run for the lift stage to have a model (it copies
+the shipped lifter; trees older than the shipped lifter train a few steps), but counts in no
+total: it does not depend on the videos.
 
 Several ``--code`` trees (e.g. a worktree of an older commit) are run alternately in one
 invocation, so their ratios are measured side by side on the same machine state; medians of

@@ -36,7 +36,7 @@ def lift_fps(lifter: Path, frames: int = 2000, clips: int = 8, runs: int = 3) ->
 
     from pipeline.motion.lifting.infer import Lifter
 
-    lift = Lifter(ort.InferenceSession(str(lifter)))
+    lift = Lifter.from_session(ort.InferenceSession(str(lifter)))
     rng = np.random.default_rng(0)
     data = [rng.uniform(100, 600, (frames, 17, 2)) for _ in range(clips)]
     times = []

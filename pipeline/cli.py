@@ -36,6 +36,8 @@ examples:
   dance3d eval beats --audio song.ogg --beats song.beats
                               score the beat tracker against your annotations (mir_eval)
   dance3d eval segments       score the proposed dance segments against annotations/segments.csv
+  dance3d eval lifter --mocap ../mocap
+                              MPJPE / P-MPJPE of the lifter on motion capture through fixed virtual cameras
   dance3d models fetch        download, convert and verify the default detector and pose model
   dance3d models convert-videopose3d pretrained_h36m_detectron_coco.bin models/lifter.onnx
                               use the official VideoPose3D weights as the lifter
@@ -103,7 +105,7 @@ def _parser() -> argparse.ArgumentParser:
     sample.add_argument("--corpus", type=Path, default=Path("data/corpus"), help="where the seed window comes from")
     sample.add_argument("--seed-frames", type=int, default=24, help="frames of the seed pose (default 24)")
     sample.add_argument("--temperature", type=float, default=0.0, help="0: most likely bins; > 0: sample")
-    evaluate = sub.add_parser("eval", help="measure quality on data you bring (pose2d, beats, segments)",
+    evaluate = sub.add_parser("eval", help="measure quality on data you bring (pose2d, beats, segments, lifter)",
                               description="Quality measures against your own annotated data.")
     evaluate_sub = evaluate.add_subparsers(dest="what", required=True, metavar="WHAT")
     pose2d = evaluate_sub.add_parser(
@@ -145,6 +147,22 @@ def _parser() -> argparse.ArgumentParser:
                     "right, and the mean start and end errors in seconds, next to the baseline of the whole "
                     "video as one segment. Propose for annotated videos too (the stage does) to measure.")
     segments.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
+    lifter = evaluate_sub.add_parser(
+        "lifter", help="a 2D->3D lifter on motion capture seen by fixed virtual cameras (MPJPE, P-MPJPE)",
+        description="Project every sequence of a motion-capture folder through ten fixed cameras (five headings; a "
+                    "portrait phone at 1.2 m, 3 m away, and a landscape camera on a 2 m stand, 5 m away; 26 mm-"
+                    "equivalent lens), lift the clean and the noisy 2D (pose-model noise of expected OKS 0.80, 2%% "
+                    "of joints missing) as the lift stage does, and report MPJPE and P-MPJPE (mm) per source next "
+                    "to the mean-pose baseline. Protocol: pipeline/motion/lifting/evaluate.py.",
+        epilog="motion capture: a folder of the known sources (as $DANCE3D_MOCAP; only the train_lifter split's "
+               "held-out sequences are scored unless --all), one source folder, or a folder of Plug-in-Gait "
+               ".c3d files and .npz files holding 'joints' (T x 17 x 3, Human3.6M order, metres, y up) and 'fps'.")
+    lifter.add_argument("--mocap", type=Path, required=True, help="the motion-capture folder")
+    lifter.add_argument("--model", type=Path, default=None, help="the lifter ONNX (default: params.yaml lift.model)")
+    lifter.add_argument("--all", action="store_true", help="score every sequence, also those the lifter trained on")
+    lifter.add_argument("--no-flip", action="store_true", help="no flip averaging (the lift stage's flip_tta)")
+    lifter.add_argument("--seconds", type=float, default=60.0, help="at most this much of each sequence (default 60)")
+    lifter.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
     models = sub.add_parser("models", help="model utilities (fetch, convert-videopose3d)")
     models_sub = models.add_subparsers(dest="action", required=True, metavar="ACTION")
     fetch = models_sub.add_parser(
@@ -198,6 +216,15 @@ def _eval(root: Path, args: argparse.Namespace) -> int:
             from pipeline.pose.evaluate import format_table
 
             result = _eval_pose2d(root, args)
+        elif args.what == "lifter":
+            from pipeline.core.params import load_params, stage_params
+            from pipeline.motion.lifting.evaluate import evaluate_onnx
+            from pipeline.motion.lifting.evaluate import format_report as format_table
+
+            model = args.model or root / stage_params(load_params(root / "params.yaml"), "lift").get(
+                "model", "models/lifter.onnx")
+            result = evaluate_onnx(model, args.mocap, heldout_only=not args.all, flip=not args.no_flip,
+                                   max_seconds=args.seconds)
         elif args.what == "segments":
             from pipeline.ingest.propose import evaluate_project, format_table
 

@@ -1,31 +1,40 @@
-"""train_lifter stage: real motion capture -> models/lifter.onnx, metrics/lifter.json, metrics/lifter_loss.csv.
+"""train_lifter stage: models/lifter.onnx, metrics/lifter.json, metrics/lifter_loss.csv.
 
-The motion capture folder is ``train_lifter.mocap`` in params, or else $DANCE3D_MOCAP.
+``train_lifter.shipped: true`` (the default) takes the lifter that ships with dance3d
+(``pipeline/motion/lifting/weights/``), trained by the ``full`` profile, with the held-out
+figures and loss curve recorded in its metadata: no motion capture and no hour of training
+needed. ``shipped: false`` trains with the chosen ``profile`` on real motion capture from
+``train_lifter.mocap`` or $DANCE3D_MOCAP.
 """
 
 from __future__ import annotations
 
+import json
 import logging
 import os
+import shutil
 import sys
 from dataclasses import fields
 from pathlib import Path
 
 from pipeline.core.errors import InputError
-from pipeline.core.params import load_params, stage_params
+from pipeline.core.params import load_params, stage_params, with_profile
 from pipeline.core.paths import LIFTER, METRICS
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import atomic_path, write_json
 
 log = logging.getLogger("dance3d.train_lifter")
+SHIPPED = Path(__file__).resolve().parents[1] / "pipeline/motion/lifting/weights/lifter_dance3d.onnx"
 
 
 def config_from_params(params: dict):
+    from pipeline.motion.lifting.data import AugmentOptions
     from pipeline.motion.lifting.train import LifterConfig
 
     known = {f.name for f in fields(LifterConfig)} - {"augment"}
     values = {k: tuple(v) if isinstance(v, list) else v for k, v in params.items() if k in known}
-    return LifterConfig(**values)
+    augment = {k: tuple(v) if isinstance(v, list) else v for k, v in (params.get("augment") or {}).items()}
+    return LifterConfig(**values, augment=AugmentOptions(**augment))
 
 
 def mocap_root(root: Path, params: dict) -> Path:
@@ -35,14 +44,68 @@ def mocap_root(root: Path, params: dict) -> Path:
         path = root / path
     if path is None or not path.is_dir():
         raise InputError(root / "params.yaml", "no motion capture folder: set train_lifter.mocap or $DANCE3D_MOCAP "
-                                               "to a folder of BVH / DeepMimic / npz motion (see MOCAP.md)")
+                                               "to a folder of BVH / DeepMimic / npz / C3D motion (see MOCAP.md)")
     return path
 
 
-def run(root: Path) -> None:
-    from pipeline.motion.lifting.train import export_onnx, load_mocap, split, train_lifter
+def _write_outputs(root: Path, metrics: dict, losses: list[float]) -> None:
+    write_json(root / METRICS / "lifter.json", metrics)
+    every = max(1, len(losses) // 200)
+    with atomic_path(root / METRICS / "lifter_loss.csv") as tmp:
+        tmp.write_text("step,train_mpjpe_mm\n" + "".join(
+            f"{i},{1000 * loss:.2f}\n" for i, loss in enumerate(losses) if i % every == 0))
 
-    params = stage_params(load_params(root / "params.yaml"), "train_lifter")
+
+def use_shipped(root: Path, shipped: Path = SHIPPED) -> None:
+    """Copy the shipped lifter to models/lifter.onnx and its recorded figures to metrics/."""
+    import onnx
+
+    meta = {p.key: p.value for p in onnx.load(str(shipped), load_external_data=False).metadata_props}
+    with atomic_path(root / LIFTER) as tmp:
+        shutil.copyfile(shipped, tmp)
+    metrics = {**json.loads(meta["metrics"]), "shipped": True}
+    losses = [float(x) / 1000 for x in meta.get("loss_curve_mm", "").split(",") if x]
+    _write_outputs(root, metrics, losses)
+    log.info("using the shipped lifter %s: held-out MPJPE %.1f mm, P-MPJPE %.1f mm (recorded at training; "
+             "re-measure with dance3d eval lifter)", shipped.name, metrics["val_mpjpe_mm"], metrics["val_p_mpjpe_mm"])
+
+
+def provenance(cfg, train: list, val: list, result, mocap: Path) -> dict:
+    """What made a lifter, for its ONNX metadata: data, params, code, figures."""
+    import dataclasses
+    import subprocess
+
+    from pipeline.core.storage import code_fingerprint
+    from pipeline.motion.lifting import data, evaluate, model
+    from pipeline.motion.lifting import train as train_module
+    from pipeline.motion.mocap import markers, sources
+
+    minutes: dict[str, float] = {}
+    for seq in train:
+        minutes[seq.source] = round(minutes.get(seq.source, 0.0) + seq.frames / seq.fps / 60, 2)
+    try:
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
+                                text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        commit = "unknown"
+    curve = result.losses[:: max(1, len(result.losses) // 200)]
+    return {"trained_on": json.dumps({"mocap": mocap.name, "train_minutes_per_source": minutes,
+                                      "train_sequences": len(train), "heldout": [s.name for s in val]}),
+            "params": json.dumps(dataclasses.asdict(cfg)), "git_commit": commit,
+            "code_fingerprint": code_fingerprint(model, data, train_module, evaluate, sources, markers),
+            "steps": len(result.losses), "metrics": json.dumps(result.metrics),
+            "loss_curve_mm": ",".join(f"{1000 * x:.2f}" for x in curve)}
+
+
+def run(root: Path) -> None:
+    section = stage_params(load_params(root / "params.yaml"), "train_lifter")
+    params = with_profile(section, "train_lifter")
+    if params.get("shipped", False):
+        use_shipped(root)
+        return
+    from pipeline.motion.lifting.evaluate import split
+    from pipeline.motion.lifting.train import export_onnx, load_mocap, train_lifter
+
     cfg = config_from_params(params)
     mocap = mocap_root(root, params)
     sequences = load_mocap(mocap, cfg)
@@ -50,16 +113,13 @@ def run(root: Path) -> None:
     if not train or not val:
         raise InputError(mocap, f"need training and held-out sequences; found {len(train)} and {len(val)} "
                                 "(check train_lifter.sources and train_lifter.holdout)")
-    log.info("training on %d sequences, holding out %d", len(train), len(val))
+    log.info("profile %s: training on %d sequences, holding out %d", params.get("profile"), len(train), len(val))
     result = train_lifter(cfg, train, val)
-    export_onnx(result.model, root / LIFTER, {"trained_on": ",".join(cfg.sources), "steps": len(result.losses)})
-    log.info("held-out MPJPE %.1f mm, P-MPJPE %.1f mm (mean pose %.1f mm)", result.metrics["val_mpjpe_mm"],
-             result.metrics["val_p_mpjpe_mm"], result.metrics["mean_pose_mpjpe_mm"])
-    write_json(root / METRICS / "lifter.json", result.metrics)
-    every = max(1, len(result.losses) // 200)
-    with atomic_path(root / METRICS / "lifter_loss.csv") as tmp:
-        tmp.write_text("step,train_mpjpe_mm\n" + "".join(
-            f"{i},{1000 * loss:.2f}\n" for i, loss in enumerate(result.losses) if i % every == 0))
+    export_onnx(result.model, root / LIFTER, provenance(cfg, train, val, result, mocap), input_norm=cfg.input_norm)
+    log.info("held-out MPJPE %.1f mm, P-MPJPE %.1f mm (mean pose %.1f mm); noisy 2D %.1f / %.1f mm",
+             result.metrics["val_mpjpe_mm"], result.metrics["val_p_mpjpe_mm"], result.metrics["mean_pose_mpjpe_mm"],
+             result.metrics["noisy_mpjpe_mm"], result.metrics["noisy_p_mpjpe_mm"])
+    _write_outputs(root, result.metrics, result.losses)
 
 
 def main() -> int:

@@ -36,6 +36,20 @@ def stage_params(params: dict[str, Any], stage: str) -> dict[str, Any]:
     return section
 
 
+def with_profile(section: dict[str, Any], stage: str) -> dict[str, Any]:
+    """A section whose ``profile`` names one of its ``profiles``: that profile's keys, then the
+    section's own keys on top (a key set in the section wins). DVC tracks the whole section, so
+    switching profile re-runs the stage."""
+    profiles = section.get("profiles") or {}
+    name = section.get("profile")
+    if name is None:
+        return {k: v for k, v in section.items() if k != "profiles"}
+    if name not in profiles:
+        raise InputError("params.yaml", f"{stage}.profile is {name!r}; the profiles are "
+                                        f"{', '.join(sorted(profiles)) or 'none'}")
+    return {**profiles[name], **{k: v for k, v in section.items() if k != "profiles"}}
+
+
 def corpus_fps(params: dict[str, Any]) -> float:
     """The corpus frame rate (``common.fps``, 24 by default): motion and every audio feature share it."""
     fps = float((params.get("common") or {}).get("fps", 24))

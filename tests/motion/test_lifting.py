@@ -11,10 +11,11 @@ import torch
 
 from pipeline.core.errors import InputError
 from pipeline.motion.lifting.convert import convert_videopose3d, infer_architecture
+from pipeline.motion.lifting.evaluate import split
 from pipeline.motion.lifting.geometry import p_mpjpe
 from pipeline.motion.lifting.infer import Lifter, fill_low_confidence
 from pipeline.motion.lifting.model import TemporalModel
-from pipeline.motion.lifting.train import LifterConfig, export_onnx, load_mocap, split, train_lifter
+from pipeline.motion.lifting.train import LifterConfig, export_onnx, load_mocap, train_lifter
 from pipeline.motion.mocap.skeleton import bone_lengths
 from pipeline.motion.quality import LIMBS
 
@@ -130,7 +131,7 @@ def test_lifting_the_dance_clip_gives_plausible_skeletons(tiny_lifter: tuple, da
     kps = np.stack([fp.keypoints[0] for fp in estimate_segment(dance_clip, 24.0, det, pose, Pose2dOptions())
                     if len(fp.scores)])
     filled, _ = fill_low_confidence(kps, 0.3)
-    lifter = Lifter(ort.InferenceSession(str(path)))
+    lifter = Lifter.from_session(ort.InferenceSession(str(path)))
     (joints,) = lifter.lift([filled], 1080, 1920, flip=True)
     assert joints.shape == (len(kps), 17, 3) and np.isfinite(joints).all()
     assert np.abs(joints[:, 0]).max() < 1e-3  # root-relative
@@ -146,10 +147,36 @@ def test_lifting_the_dance_clip_gives_plausible_skeletons(tiny_lifter: tuple, da
 
 def test_clips_lifted_together_equal_clips_lifted_alone(tiny_lifter: tuple) -> None:
     _, path = tiny_lifter
-    lifter = Lifter(ort.InferenceSession(str(path)))
+    lifter = Lifter.from_session(ort.InferenceSession(str(path)))
     rng = np.random.default_rng(0)
     a, b = rng.uniform(100, 600, (40, 17, 2)), rng.uniform(100, 600, (9, 17, 2))
     together = lifter.lift([a, b], 640, 720)
     alone = lifter.lift([a], 640, 720) + lifter.lift([b], 640, 720)
     for x, y in zip(together, alone):
         assert np.abs(x - y).max() < 1e-5
+
+
+def test_centred_input_ignores_where_and_how_large_the_dancer_is_in_the_image() -> None:
+    from pipeline.motion.lifting.geometry import normalise
+
+    xy = np.random.default_rng(0).uniform(100, 300, (40, 17, 2))
+    moved = xy * 2.5 + np.array([700.0, -40.0])
+    a = normalise(xy, 1920, 1080, "centred", 27)
+    b = normalise(moved, 1080, 1920, "centred", 27)
+    assert np.abs(a - b).max() < 1e-9
+    assert np.abs((a[:, 11] + a[:, 12]) / 2).max() < 1e-9  # the hips' midpoint is the origin
+    with pytest.raises(ValueError, match="unknown input normalisation 'pixels'"):
+        normalise(xy, 1920, 1080, "pixels", 27)
+
+
+def test_the_exported_lifter_lifts_as_the_torch_model_does(tmp_path: Path) -> None:
+    torch.manual_seed(0)
+    model = TemporalModel(17, 17, (3, 3), 32).eval()
+    export_onnx(model, tmp_path / "lifter.onnx", input_norm="centred")
+    session = ort.InferenceSession(str(tmp_path / "lifter.onnx"))
+    onnx_lifter = Lifter.from_session(session)
+    assert onnx_lifter.input_norm == "centred" and onnx_lifter.receptive_field == 9
+    clip = np.random.default_rng(1).uniform(200, 900, (30, 17, 2))
+    (a,) = onnx_lifter.lift([clip], 1080, 1920, flip=True)
+    (b,) = Lifter.from_torch(model, "centred").lift([clip], 1080, 1920, flip=True)
+    assert np.abs(a - b).max() < 1e-4

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.motion.lifting.geometry import look_at, normalise_screen, project, to_camera
+from pipeline.motion.lifting.evaluate import add_pose_noise
+from pipeline.motion.lifting.geometry import look_at, normalise, project, to_camera
 from pipeline.motion.mocap.skeleton import COCO_FLIP, H36M_FLIP
 from pipeline.motion.mocap.sources import MocapSequence
 
@@ -33,6 +34,8 @@ class AugmentOptions:
     speed: tuple[float, float] = (0.75, 1.33)      # temporal speed change
     mirror: float = 0.5                            # probability of a mirrored body
     jitter: float = 0.012                          # joint noise, share of body height in the image (std)
+    pose_noise: tuple[float, float] = (0.0, 0.0)   # per-joint pose-model noise (COCO sigmas), level drawn per window
+                                                   # (0.5: expected OKS 0.80; see evaluate.add_pose_noise)
     drop: float = 0.03                             # probability a joint is missing in a frame
     swap: float = 0.02                             # probability per window of a left/right pair swapped for a while
 
@@ -48,8 +51,9 @@ def _window(seq: MocapSequence, length: int, speed: float, start: float) -> tupl
 
 
 def make_pair(seq: MocapSequence, length: int, rng: np.random.Generator, opts: AugmentOptions,
-              augment: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """One (2D input (length x 17 x 2), 3D target (length x 17 x 3)) pair."""
+              augment: bool = True, input_norm: str = "screen", window: int = 27) -> tuple[np.ndarray, np.ndarray]:
+    """One (2D input (length x 17 x 2), 3D target (length x 17 x 3)) pair; ``window`` is the
+    receptive field (the centred normalisation's scale filter)."""
     speed = rng.uniform(*opts.speed) if augment else 1.0
     span = (length - 1) * speed
     start = rng.uniform(0, max(0.0, seq.frames - 1 - span))
@@ -83,6 +87,8 @@ def make_pair(seq: MocapSequence, length: int, rng: np.random.Generator, opts: A
     if augment:
         px_body = focal * body / distance
         xy = xy + rng.normal(0, opts.jitter * px_body, xy.shape)
+        if opts.pose_noise[1] > 0:
+            xy = add_pose_noise(xy, rng, rng.uniform(*opts.pose_noise), drop=0.0)
         if rng.random() < opts.swap:
             a, b = LR_PAIRS[rng.integers(len(LR_PAIRS))]
             t0 = rng.integers(length)
@@ -91,7 +97,7 @@ def make_pair(seq: MocapSequence, length: int, rng: np.random.Generator, opts: A
         dropped = rng.random(xy.shape[:2]) < opts.drop
         for t in range(1, length):
             xy[t, dropped[t]] = xy[t - 1, dropped[t]]
-    inputs = normalise_screen(xy, width, height).astype(np.float32)
+    inputs = normalise(xy, width, height, input_norm, window).astype(np.float32)
     targets = (h36m_cam - h36m_cam[:, :1]).astype(np.float32)
     return inputs, targets
 
@@ -99,23 +105,17 @@ def make_pair(seq: MocapSequence, length: int, rng: np.random.Generator, opts: A
 class PairSampler:
     """Random training windows, sequences drawn in proportion to their length."""
 
-    def __init__(self, sequences: list[MocapSequence], length: int, opts: AugmentOptions, seed: int) -> None:
+    def __init__(self, sequences: list[MocapSequence], length: int, opts: AugmentOptions, seed: int,
+                 input_norm: str = "screen", window: int = 27) -> None:
         self.sequences = [s for s in sequences if s.frames >= 2]
         weights = np.array([s.frames for s in self.sequences], float)
         self.p = weights / weights.sum()
         self.length, self.opts = length, opts
+        self.input_norm, self.window = input_norm, window
         self.rng = np.random.default_rng(seed)
 
     def batch(self, size: int) -> tuple[np.ndarray, np.ndarray]:
         picks = self.rng.choice(len(self.sequences), size=size, p=self.p)
-        pairs = [make_pair(self.sequences[i], self.length, self.rng, self.opts) for i in picks]
+        pairs = [make_pair(self.sequences[i], self.length, self.rng, self.opts, input_norm=self.input_norm,
+                           window=self.window) for i in picks]
         return np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs])
-
-
-def validation_set(sequences: list[MocapSequence], length: int, per_sequence: int, seed: int,
-                   opts: AugmentOptions) -> tuple[np.ndarray, np.ndarray]:
-    """A fixed set of held-out windows seen through fixed random cameras (no noise)."""
-    rng = np.random.default_rng(seed)
-    pairs = [make_pair(s, length, rng, opts, augment=False) for s in sequences if s.frames >= length
-             for _ in range(per_sequence)]
-    return np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs])

@@ -10,6 +10,28 @@ def normalise_screen(xy: np.ndarray, width: float, height: float) -> np.ndarray:
     return xy / width * 2 - np.array([1.0, height / width])
 
 
+def normalise_centred(xy: np.ndarray, window: int) -> np.ndarray:
+    """Keypoints (T x 17 x 2, COCO) about the hips' midpoint, divided by the body's size in the
+    image: the root-mean-square distance of the keypoints from their centre, median-filtered
+    over ``window`` frames (the receptive field), so the scale follows a dancer who comes nearer
+    but not a pose that opens its arms. Camera, framing and person size no longer reach the model."""
+    from scipy.ndimage import median_filter
+
+    centre = (xy[:, 11] + xy[:, 12]) / 2
+    spread = np.sqrt(((xy - xy.mean(1, keepdims=True)) ** 2).sum(-1).mean(-1))
+    size = median_filter(spread, size=max(1, min(window, len(spread))), mode="nearest")
+    return (xy - centre[:, None]) / np.maximum(size, 1e-6)[:, None, None]
+
+
+def normalise(xy: np.ndarray, width: float, height: float, method: str, window: int) -> np.ndarray:
+    """The lifter's input normalisation: ``screen`` (VideoPose3D's, the official weights') or ``centred``."""
+    if method == "screen":
+        return normalise_screen(xy, width, height)
+    if method == "centred":
+        return normalise_centred(xy, window)
+    raise ValueError(f"unknown input normalisation {method!r} (screen or centred)")
+
+
 def look_at(position: np.ndarray, target: np.ndarray) -> np.ndarray:
     """World-to-camera rotation (rows: camera x right, y down, z forward), world y up."""
     forward = target - position
@@ -41,8 +63,8 @@ def p_mpjpe(pred: np.ndarray, target: np.ndarray) -> float:
     t = target.reshape(-1, *target.shape[-2:])
     mu_p, mu_t = p.mean(1, keepdims=True), t.mean(1, keepdims=True)
     p0, t0 = p - mu_p, t - mu_t
-    norm_p = np.sqrt((p0 ** 2).sum((1, 2), keepdims=True))
-    norm_t = np.sqrt((t0 ** 2).sum((1, 2), keepdims=True))
+    norm_p = np.maximum(np.sqrt((p0 ** 2).sum((1, 2), keepdims=True)), 1e-12)  # a collapsed pose stays finite
+    norm_t = np.maximum(np.sqrt((t0 ** 2).sum((1, 2), keepdims=True)), 1e-12)
     p0, t0 = p0 / norm_p, t0 / norm_t
     u, s, vt = np.linalg.svd(np.einsum("fji,fjk->fik", t0, p0))
     v = vt.transpose(0, 2, 1)

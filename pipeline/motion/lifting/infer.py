@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from pipeline.motion.lifting.geometry import normalise_screen
+from pipeline.motion.lifting.geometry import normalise
 from pipeline.motion.mocap.skeleton import COCO_FLIP, H36M_FLIP
 
 
@@ -31,22 +32,43 @@ def fill_low_confidence(keypoints: np.ndarray, min_score: float) -> tuple[np.nda
 
 
 class Lifter:
-    """An ONNX lifter exported by ``pipeline.motion.lifting.train.export_onnx`` (or the converter)."""
+    """A lifter: an exported ONNX model (``from_session``, the lift stage's) or a torch model in
+    training (``from_torch``); both lift clips the same way."""
 
-    def __init__(self, session) -> None:
-        self.session = session
+    def __init__(self, forward: Callable[[np.ndarray], np.ndarray], receptive_field: int,
+                 input_norm: str = "screen") -> None:
+        self.forward = forward            # (1, T, 17, 2) float32 -> (1, T - rf + 1, 17, 3)
+        self.receptive_field = receptive_field
+        self.input_norm = input_norm      # how 2D keypoints are normalised (geometry.normalise)
+
+    @classmethod
+    def from_session(cls, session) -> Lifter:
+        """An ONNX lifter exported by ``pipeline.motion.lifting.train.export_onnx`` (or the converter)."""
         meta = session.get_modelmeta().custom_metadata_map
         if "receptive_field" not in meta:
             raise ValueError("the lifter ONNX has no receptive_field in its metadata (export it with dance3d)")
-        self.receptive_field = int(meta["receptive_field"])
-        self.input_name = session.get_inputs()[0].name
+        name = session.get_inputs()[0].name
+        # Lifters exported before the centred normalisation, and converted official weights, are "screen".
+        return cls(lambda x: session.run(None, {name: x})[0], int(meta["receptive_field"]),
+                   meta.get("input_norm", "screen"))
+
+    @classmethod
+    def from_torch(cls, model, input_norm: str = "screen") -> Lifter:
+        import torch
+
+        def forward(x: np.ndarray) -> np.ndarray:
+            model.eval()
+            with torch.no_grad():
+                return model(torch.from_numpy(x)).numpy()
+
+        return cls(forward, model.receptive_field, input_norm)
 
     def _run(self, sequences: list[np.ndarray]) -> list[np.ndarray]:
         """Lift several normalised clips (T_i x 17 x 2) in one call: each is edge-padded by
         half the receptive field and the padded clips are laid end to end."""
         pad = self.receptive_field // 2
         padded = [np.concatenate([np.repeat(s[:1], pad, 0), s, np.repeat(s[-1:], pad, 0)]) for s in sequences]
-        (out,) = self.session.run(None, {self.input_name: np.concatenate(padded)[None].astype(np.float32)})
+        out = self.forward(np.concatenate(padded)[None].astype(np.float32))
         results, offset = [], 0
         for s in sequences:
             results.append(out[0, offset: offset + len(s)])
@@ -57,7 +79,7 @@ class Lifter:
         """2D pixel clips (T_i x 17 x 2, COCO) -> 3D clips (T_i x 17 x 3, H36M, root-relative metres)."""
         if not clips:
             return []
-        norm = [normalise_screen(c, width, height) for c in clips]
+        norm = [normalise(c, width, height, self.input_norm, self.receptive_field) for c in clips]
         outputs = self._run(norm)
         if flip:
             mirrored = [(n * np.array([-1.0, 1.0]))[:, list(COCO_FLIP)] for n in norm]
@@ -84,7 +106,7 @@ def load_lifter(path: str, threads: int = 1) -> Lifter:
     """One worker's lifter, built once and reused for every segment it gets."""
     from pipeline.pose.models.session import create_session
 
-    return Lifter(create_session(Path(path), threads))
+    return Lifter.from_session(create_session(Path(path), threads))
 
 
 def lift_segment(lifter: Lifter, job: LiftJob) -> dict:

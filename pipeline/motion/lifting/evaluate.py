@@ -1,0 +1,197 @@
+"""The held-out protocol for a 2D->3D lifter: whole motion-capture sequences seen by fixed
+virtual cameras, lifted exactly as the lift stage lifts a clip, scored per source.
+
+Protocol (``dance3d eval lifter`` and the train_lifter stage's metrics):
+
+- sequences are resampled to ``fps`` (25) and lifted whole (edge-padded, as in the lift
+  stage), at most ``max_seconds`` of each;
+- ten fixed cameras: five headings (0, 72, 144, 216, 288 degrees around the middle of the
+  dancer's path) x two set-ups, a portrait phone held at 1.2 m, 3 m away, and a landscape
+  camera on a 2 m stand, 5 m away (both pushed back by how far the dancer travels from the
+  middle); both have a phone's 26 mm-equivalent focal length and look at 1 m above the floor;
+- clean 2D (the projected keypoints) and noisy 2D: per-joint Gaussian noise scaled by the
+  COCO keypoint sigmas and the person's size, the error of a pose model whose expected OKS
+  is 0.80, with 2 % of joints missing (carried over from the previous frame, as the lift
+  stage's gap filling does), drawn with a fixed seed;
+- MPJPE (mm, root-relative, camera frame) and P-MPJPE (after a per-frame similarity
+  alignment), per source and over all frames; every source and camera weighs by its frames;
+- baseline: the mean pose, i.e. the evaluated set's own mean root-relative pose in each
+  camera (an oracle: it knows the test set's average), for scale.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.core.errors import InputError
+from pipeline.motion.lifting.geometry import look_at, mpjpe, p_mpjpe, project, to_camera
+from pipeline.motion.mocap.sources import MocapSequence, resample
+
+# The held-out sequences of the shared motion capture (name prefixes): whole performers where
+# a source names them (Perfume's Kashiyuka, DanceDB's Olivia, the 8-year-old of AnimatedDrawings,
+# ChoreoNet's second dancer, files ll_* and mm_*, whose limb lengths differ from the numbered
+# files'), else whole takes (CMU 05's takes 10-19, Tang's rumba 8, Bandai's dance, DeepMimic's
+# dance_b). No window of a held-out take is ever trained on.
+HOLDOUT = ("perfume/kashiyuka", "dancedb_ucy/olivia", "cmu_subject05_iclone/005_1", "tang2018_ballroom/DANCE_R_8",
+           "bandai_namco_1/dataset-1_dance", "animated_drawings_fair/8yr_old", "deepmimic/humanoid3d_dance_b",
+           "choreonet_c3d/ll_", "choreonet_c3d/mm_")
+
+
+def split(sequences: list[MocapSequence], holdout: tuple[str, ...] = HOLDOUT) -> tuple[list, list]:
+    """(train, held out): whole sequences whose name starts with a held-out prefix are held out."""
+    val = [s for s in sequences if s.name.startswith(holdout)]
+    train = [s for s in sequences if not s.name.startswith(holdout)]
+    return train, val
+
+
+# COCO keypoint sigmas (pycocotools' OKS constants), per COCO-17 joint.
+COCO_SIGMAS = np.array([0.026, 0.025, 0.025, 0.035, 0.035, 0.079, 0.079, 0.072, 0.072, 0.062, 0.062,
+                        0.107, 0.107, 0.087, 0.087, 0.089, 0.089])
+# Noise of std level * k * s per axis (k = 2 sigma, s = sqrt of the keypoints' box area) gives an
+# expected OKS of 1 / (1 + level^2) per joint: 0.80 at level 0.5.
+OKS80_NOISE = 0.5
+
+
+@dataclass(frozen=True)
+class Camera:
+    name: str
+    heading_deg: float
+    height_m: float
+    distance_m: float
+    width: int
+    height: int
+    focal_equiv_mm: float = 26.0   # 35 mm-equivalent focal length (a phone's main camera)
+
+    @property
+    def focal_px(self) -> float:
+        return self.focal_equiv_mm / 43.27 * float(np.hypot(self.width, self.height))
+
+
+PROTOCOL_CAMERAS = tuple(
+    Camera(f"{setup}_{heading}", heading, h, d, w, ht)
+    for heading in (0, 72, 144, 216, 288)
+    for setup, h, d, w, ht in (("phone", 1.2, 3.0, 1080, 1920), ("stand", 2.0, 5.0, 1920, 1080)))
+
+
+def view(seq_h36m: np.ndarray, seq_coco: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
+    """Project a sequence through ``camera``, set around the middle of the dancer's path and far
+    enough that the dancer never comes nearer than its distance: returns pixel COCO keypoints
+    (T x 17 x 2) and camera-frame H36M joints (T x 17 x 3)."""
+    root = seq_h36m[:, 0]
+    centre = (root.min(0) + root.max(0)) / 2
+    travel = float(np.max(np.linalg.norm((root - centre)[:, [0, 2]], axis=-1)))
+    floor = float(np.min(seq_h36m[:, [3, 6], 1]))
+    yaw = np.radians(camera.heading_deg)
+    position = centre + (camera.distance_m + travel) * np.array([np.sin(yaw), 0.0, np.cos(yaw)])
+    position[1] = floor + camera.height_m
+    target = np.array([centre[0], floor + 1.0, centre[2]])
+    rotation = look_at(position, target)
+    coco_cam = to_camera(seq_coco, rotation, position)
+    h36m_cam = to_camera(seq_h36m, rotation, position)
+    return project(coco_cam, camera.focal_px, camera.width, camera.height), h36m_cam
+
+
+def add_pose_noise(xy: np.ndarray, rng: np.random.Generator, level: float = OKS80_NOISE,
+                   drop: float = 0.02) -> np.ndarray:
+    """Per-joint noise of a pose model (std level * 2 sigma_j * s, s the person's box size per
+    frame) and missing joints carried over from the previous frame."""
+    span = xy.max(1) - xy.min(1)
+    size = np.sqrt(np.maximum(span[:, 0] * span[:, 1], 1.0))[:, None, None]
+    noisy = xy + rng.normal(0.0, 1.0, xy.shape) * level * 2 * COCO_SIGMAS[None, :, None] * size
+    dropped = rng.random(xy.shape[:2]) < drop
+    for t in range(1, len(noisy)):
+        noisy[t, dropped[t]] = noisy[t - 1, dropped[t]]
+    return noisy
+
+
+# (clips of pixel keypoints, width, height) -> root-relative 3D clips, as Lifter.lift
+LiftFn = Callable[[list[np.ndarray], int, int], list[np.ndarray]]
+
+
+def evaluate_lifter(lift: LiftFn, sequences: list[MocapSequence], *, fps: float = 25.0, max_seconds: float = 60.0,
+                    cameras: tuple[Camera, ...] = PROTOCOL_CAMERAS, seed: int = 0) -> dict:
+    """The protocol above: {"clean": {...}, "noisy": {...}, "sources": {...}, "protocol": {...}}."""
+    rng = np.random.default_rng(seed)
+    sequences = [resample(s, fps) for s in sequences]
+    sequences = [type(s)(s.name, s.source, s.fps, s.h36m[: int(max_seconds * fps)], s.coco[: int(max_seconds * fps)])
+                 for s in sequences]
+    per: dict[str, dict[str, list]] = {}
+    for camera in cameras:
+        views = [view(s.h36m, s.coco, camera) for s in sequences]
+        targets = [h - h[:, :1] for _, h in views]
+        mean_pose = np.concatenate(targets).mean(0)
+        for condition in ("clean", "noisy"):
+            inputs = [xy if condition == "clean" else add_pose_noise(xy, rng) for xy, _ in views]
+            preds = lift(inputs, camera.width, camera.height)
+            for seq, pred, target in zip(sequences, preds, targets):
+                bucket = per.setdefault(seq.source, {}).setdefault(condition, [])
+                bucket.append((len(target), mpjpe(pred, target), p_mpjpe(pred, target),
+                               mpjpe(np.broadcast_to(mean_pose, target.shape), target),
+                               p_mpjpe(np.broadcast_to(mean_pose, target.shape), target)))
+    return summarise(per, sequences, fps, max_seconds, cameras)
+
+
+def _weighted(rows: list[tuple]) -> dict:
+    arr = np.array(rows, dtype=np.float64)
+    w = arr[:, 0] / arr[:, 0].sum()
+    keys = ("mpjpe_mm", "p_mpjpe_mm", "mean_pose_mpjpe_mm", "mean_pose_p_mpjpe_mm")
+    return {k: round(1000 * float((arr[:, i + 1] * w).sum()), 1) for i, k in enumerate(keys)}
+
+
+def summarise(per: dict, sequences: list[MocapSequence], fps: float, max_seconds: float,
+              cameras: tuple[Camera, ...]) -> dict:
+    result: dict = {"sources": {}}
+    for condition in ("clean", "noisy"):
+        result[condition] = _weighted([r for source in per.values() for r in source[condition]])
+    for source, rows in sorted(per.items()):
+        names = [s.name for s in sequences if s.source == source]
+        frames = sum(len(s.h36m) for s in sequences if s.source == source)
+        result["sources"][source] = {"sequences": len(names), "seconds": round(frames / fps, 1),
+                                     "clean": _weighted(rows["clean"]), "noisy": _weighted(rows["noisy"])}
+    result["protocol"] = {"sequences": len(sequences), "seconds": round(sum(len(s.h36m) for s in sequences) / fps, 1),
+                          "fps": fps, "max_seconds_per_sequence": max_seconds,
+                          "cameras": [c.name for c in cameras], "noise": f"OKS {1 / (1 + OKS80_NOISE ** 2):.2f}, "
+                                                                       "2% joints missing"}
+    return result
+
+
+def evaluate_onnx(model: Path, mocap: Path, *, heldout_only: bool = True, flip: bool = True,
+                  max_seconds: float = 60.0, threads: int = 2) -> dict:
+    """``dance3d eval lifter``: an exported lifter on a motion-capture folder (``load_folder``).
+    With ``heldout_only``, a folder of the known sources is cut to the train_lifter split's
+    held-out sequences (a folder of your own capture is used whole)."""
+    from functools import partial
+
+    from pipeline.motion.lifting.infer import load_lifter
+    from pipeline.motion.mocap.sources import load_folder
+
+    sequences = load_folder(mocap)
+    if not Path(model).is_file():
+        raise InputError(model, "no such lifter (train it with `dvc repro train_lifter` or pass --model)")
+    held = split(sequences)[1] if heldout_only else []
+    if held:
+        sequences = held
+    lifter = load_lifter(str(model), threads)
+    result = evaluate_lifter(partial(lifter.lift, flip=flip), sequences, max_seconds=max_seconds)
+    result["protocol"].update(model=str(model), mocap=str(mocap), flip=flip,
+                              split="held-out sequences of the train_lifter split" if held else "every sequence")
+    return result
+
+
+def format_report(result: dict) -> str:
+    """A plain-text table: one line per source, clean and noisy, beside the mean pose."""
+    lines = [f"{'source':28s} {'seq':>4s} {'sec':>6s} | {'MPJPE':>6s} {'P-MPJPE':>7s} | noisy {'MPJPE':>6s} "
+             f"{'P-MPJPE':>7s} | mean pose {'MPJPE':>6s} {'P-MPJPE':>7s}"]
+    rows = [(name, r) for name, r in result["sources"].items()]
+    rows.append(("all", {"sequences": result["protocol"]["sequences"], "seconds": result["protocol"]["seconds"],
+                         "clean": result["clean"], "noisy": result["noisy"]}))
+    for name, r in rows:
+        c, n = r["clean"], r["noisy"]
+        lines.append(f"{name:28s} {r['sequences']:4d} {r['seconds']:6.0f} | {c['mpjpe_mm']:6.1f} "
+                     f"{c['p_mpjpe_mm']:7.1f} |       {n['mpjpe_mm']:6.1f} {n['p_mpjpe_mm']:7.1f} |           "
+                     f"{c['mean_pose_mpjpe_mm']:6.1f} {c['mean_pose_p_mpjpe_mm']:7.1f}")
+    return "\n".join(lines)
