@@ -8,7 +8,7 @@ Variants add one change at a time to the previous default (``previous``):
   +choreonet   + the ChoreoNet C3D markers (performer ll/mm held out)
   +noise       + pose-model noise in training (COCO sigmas, level 0-0.5)
   +losses      + velocity (0.5) and bone-length consistency (0.5) terms
-  +centred     + 2D input about the hips, divided by the body's image size (not VideoPose3D's screen frame)
+  +centred     +noise with 2D input about the hips, divided by the body's image size (not VideoPose3D's screen frame)
   +framing     + people filling 20-95 % of the image height in training (was 35-95 %)
   rf81         the above with an 81-frame receptive field, 256 channels
   rf243        the above with a 243-frame receptive field, 256 channels
@@ -32,11 +32,13 @@ OLD_SOURCES = tuple(s for s in SOURCES if s != "choreonet_c3d")
 
 
 def variants(steps: int) -> dict[str, LifterConfig]:
-    previous = LifterConfig(steps=steps, channels=128, filter_widths=(3, 3, 3), sources=OLD_SOURCES)
+    old_augment = AugmentOptions(pose_noise=(0.0, 0.0), fill=(0.35, 0.95))
+    previous = LifterConfig(steps=steps, channels=128, filter_widths=(3, 3, 3), sources=OLD_SOURCES,
+                            input_norm="screen", augment=old_augment)
     choreo = replace(previous, sources=SOURCES)
-    noise = replace(choreo, augment=AugmentOptions(pose_noise=(0.0, 0.5)))
+    noise = replace(choreo, augment=replace(old_augment, pose_noise=(0.0, 0.5)))
     losses = replace(noise, velocity_weight=0.5, bone_weight=0.5)
-    centred = replace(losses, input_norm="centred")
+    centred = replace(noise, input_norm="centred")  # the loss terms did not help (README): left out
     framing = replace(centred, augment=replace(centred.augment, fill=(0.2, 0.95)))
     return {"previous": previous, "+choreonet": choreo, "+noise": noise, "+losses": losses, "+centred": centred,
             "+framing": framing, "rf81": replace(framing, filter_widths=(3, 3, 3, 3), channels=256),

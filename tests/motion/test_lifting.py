@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -180,3 +181,34 @@ def test_the_exported_lifter_lifts_as_the_torch_model_does(tmp_path: Path) -> No
     (a,) = onnx_lifter.lift([clip], 1080, 1920, flip=True)
     (b,) = Lifter.from_torch(model, "centred").lift([clip], 1080, 1920, flip=True)
     assert np.abs(a - b).max() < 1e-4
+
+
+def test_the_train_lifter_stage_uses_the_shipped_lifter_by_default(tmp_path: Path) -> None:
+    from stages.train_lifter import SHIPPED, run
+    from tests.conftest import PROJECT
+
+    (tmp_path / "params.yaml").write_text((PROJECT / "params.yaml").read_text())
+    run(tmp_path)  # no motion capture, no training
+    assert (tmp_path / "models/lifter.onnx").read_bytes() == SHIPPED.read_bytes()
+    metrics = json.loads((tmp_path / "metrics/lifter.json").read_text())
+    assert metrics["shipped"] is True and metrics["val_p_mpjpe_mm"] > 0
+    assert (tmp_path / "metrics/lifter_loss.csv").read_text().startswith("step,train_mpjpe_mm\n0,")
+
+
+def test_the_shipped_lifter_says_what_made_it_and_meets_the_target_on_held_out_performers(mocap_dir: Path) -> None:
+    from pipeline.motion.lifting.evaluate import HOLDOUT, evaluate_onnx
+    from stages.train_lifter import SHIPPED
+
+    meta = ort.InferenceSession(str(SHIPPED)).get_modelmeta().custom_metadata_map
+    trained_on, params = json.loads(meta["trained_on"]), json.loads(meta["params"])
+    assert all(name.startswith(HOLDOUT) for name in trained_on["heldout"])
+    assert "choreonet_c3d" in trained_on["train_minutes_per_source"] and len(meta["git_commit"]) == 40
+    assert params["steps"] == int(meta["steps"]) and meta["input_norm"] == params["input_norm"]
+    result = evaluate_onnx(SHIPPED, mocap_dir)
+    assert result["protocol"]["split"].startswith("held-out")
+    clean = result["clean"]
+    assert clean["p_mpjpe_mm"] <= 70 and clean["mpjpe_mm"] <= 100, clean  # the target of issue 14
+    assert result["noisy"]["p_mpjpe_mm"] < clean["mean_pose_p_mpjpe_mm"] / 2
+    # The figures recorded at training are the ones measured here.
+    recorded = json.loads(meta["metrics"])
+    assert abs(recorded["val_p_mpjpe_mm"] - clean["p_mpjpe_mm"]) < 0.5

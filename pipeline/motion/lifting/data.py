@@ -29,12 +29,12 @@ class AugmentOptions:
     distance: tuple[float, float] = (2.5, 9.0)     # camera to dancer, m
     height: tuple[float, float] = (0.3, 2.5)       # camera height, m
     pitch_target: tuple[float, float] = (0.6, 1.4)  # height of the look-at point, m
-    fill: tuple[float, float] = (0.35, 0.95)       # person height as a share of the image height
+    fill: tuple[float, float] = (0.2, 0.95)        # person height as a share of the image height
     scale: tuple[float, float] = (0.85, 1.15)      # body scale (bone-length variety)
     speed: tuple[float, float] = (0.75, 1.33)      # temporal speed change
     mirror: float = 0.5                            # probability of a mirrored body
     jitter: float = 0.012                          # joint noise, share of body height in the image (std)
-    pose_noise: tuple[float, float] = (0.0, 0.0)   # per-joint pose-model noise (COCO sigmas), level drawn per window
+    pose_noise: tuple[float, float] = (0.0, 0.5)   # per-joint pose-model noise (COCO sigmas), level drawn per window
                                                    # (0.5: expected OKS 0.80; see evaluate.add_pose_noise)
     drop: float = 0.03                             # probability a joint is missing in a frame
     swap: float = 0.02                             # probability per window of a left/right pair swapped for a while

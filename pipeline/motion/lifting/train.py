@@ -39,7 +39,7 @@ class LifterConfig:
     threads: int = 2
     velocity_weight: float = 0.0   # weight of the velocity error (MPJVE) in the loss
     bone_weight: float = 0.0       # weight of bone-length consistency (over time, left vs right) in the loss
-    input_norm: str = "screen"     # screen: VideoPose3D's; centred: about the hips, by the body's size (geometry.py)
+    input_norm: str = "centred"    # screen: VideoPose3D's; centred: about the hips, by the body's size (geometry.py)
     sources: tuple[str, ...] = SOURCES
     # Held out by performer where a source names them, else by take (see README, "3D lifting").
     holdout: tuple[str, ...] = HOLDOUT
