@@ -31,6 +31,8 @@ examples:
   dance3d manifests check     validate manifests: every problem as file:line: reason
   dance3d render data/motion24/musepose_dance_000.parquet musepose_dance_000_1_0 clip.mp4
                               draw a 3D clip (front and side views) with its music
+  dance3d export bvh data/motion24/musepose_dance_000.parquet musepose_dance_000_1_0 clip.bvh
+                              one clip as BVH: y-up world frame, one skeleton, joint rotations
   dance3d eval pose2d --annotations person_keypoints.json --images images/
                               COCO keypoint AP, detection recall, PCK of the configured 2D models
   dance3d eval beats --audio song.ogg --beats song.beats
@@ -94,6 +96,19 @@ def _parser() -> argparse.ArgumentParser:
     render.add_argument("motion", type=Path, help="a motion Parquet file")
     render.add_argument("clip_id", help="the clip to draw (see the file's clip_id column)")
     render.add_argument("out", type=Path, help="the mp4 to write")
+    export = sub.add_parser("export", help="export motion for animation tools (bvh)")
+    export_sub = export.add_subparsers(dest="format", required=True, metavar="FORMAT")
+    bvh = export_sub.add_parser(
+        "bvh", help="one clip as a BVH file (world frame, y up, metres, one skeleton)",
+        description="Turn one clip of a motion file (data/pose3d, data/smooth or data/motion24) into a BVH file: "
+                    "rotated from the camera frame into a y-up world frame (up from the body's long axis over "
+                    "the clip; the lowest ankle on the floor, y = 0), constant bone lengths (the clip's medians, "
+                    "left and right averaged), joint rotations on that skeleton (ZXY Euler angles), metres, "
+                    "the file's frame rate. Blender: File > Import > Motion Capture (.bvh), scale 1.",
+        epilog="the estimated camera pitch and roll and how far the skeleton fit moved the joints are printed")
+    bvh.add_argument("motion", type=Path, help="a motion Parquet file")
+    bvh.add_argument("clip_id", help="the clip to export (see the file's clip_id column)")
+    bvh.add_argument("out", type=Path, help="the .bvh file to write")
     sample = sub.add_parser("sample", help="generate dance for a music file with the trained model",
                             description="Continue a seed pose (the first frames of a corpus window) for N frames "
                                         "to the music of an audio file, with models/tsmt.pt, and write a motion "
@@ -281,6 +296,8 @@ def main(argv: list[str] | None = None) -> int:
         return _sample(root, args)
     if args.command == "render":
         return _render(root, args)
+    if args.command == "export":
+        return _export_bvh(args)
     if args.command == "eval":
         return _eval(root, args)
     if args.command == "models" and args.action == "fetch":
@@ -417,6 +434,31 @@ def _render(root: Path, args: argparse.Namespace) -> int:
     audio = root / AUDIO / f"{meta.get('segment_id', '')}.flac"  # the segment's normalised audio
     render_clip(clip.joints, clip.time, fps, args.out, audio=audio, title=args.clip_id)
     print(f"wrote {args.out}")
+    return 0
+
+
+def _export_bvh(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from pipeline.core.storage import read_meta
+    from pipeline.motion.bones import bone_length_cv
+    from pipeline.motion.bvh_export import solve_rotations, write_bvh
+    from pipeline.motion.motionfile import read_clips
+    from pipeline.motion.world import to_world
+
+    clips = {c.clip_id: c for c in read_clips(args.motion)}
+    if args.clip_id not in clips:
+        print(f"dance3d: {args.motion}: no clip {args.clip_id!r}; clips: {', '.join(clips) or 'none'}", file=sys.stderr)
+        return 2
+    joints = clips[args.clip_id].joints.astype(np.float64)
+    world, camera = to_world(joints)
+    motion = solve_rotations(world)
+    write_bvh(args.out, motion, float(read_meta(args.motion).get("fps", 24.0)))
+    moved = np.linalg.norm(motion.joints - world, axis=-1)
+    print(f"wrote {args.out}: {len(joints)} frames; camera pitch {camera.pitch_deg:+.1f} deg, roll "
+          f"{camera.roll_deg:+.1f} deg; bone-length CV {bone_length_cv(world):.1%} -> "
+          f"{bone_length_cv(motion.joints):.1%}, joints moved {1000 * moved.mean():.1f} mm on average "
+          f"({1000 * moved.max():.1f} mm at most)")
     return 0
 
 

@@ -1,0 +1,167 @@
+"""Joint rotations on a clip's one skeleton, and BVH files that Blender and other tools load.
+
+The skeleton is H36M-17 with constant bone lengths (``bones.fit_skeleton``), in a T-pose at
+rest: y up, facing +z, arms along +-x (the subject's left is +x), metres (Blender's BVH
+importer takes 1 unit as 1 m at its default scale). The pelvis and the thorax take the full
+orientation of the hips and the shoulders; each other joint turns its one bone by the
+smallest rotation from its parent's frame (a twist about a bone is not seen in joint
+positions, so none is invented). Joints with several children reach each through a
+zero-length ``...Root`` joint of its own, so forward kinematics gives back every joint
+exactly. Channels: the root's position, then ``Zrotation Xrotation Yrotation`` (R = Rz·Rx·Ry).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from pipeline.motion.bones import apply_skeleton, fit_skeleton
+from pipeline.motion.mocap.skeleton import H36M_BONES
+
+_X, _Y = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+
+
+@dataclass(frozen=True)
+class BvhJointSpec:
+    name: str
+    parent: int            # index into BVH_JOINTS, -1 for the root
+    h36m: int | None       # the H36M joint at this place (None: a zero-length root joint)
+    rest: np.ndarray       # unit direction of the bone from the parent, at rest (zero for roots)
+
+
+def _spec() -> tuple[BvhJointSpec, ...]:
+    joints: list[BvhJointSpec] = [BvhJointSpec("Hips", -1, 0, np.zeros(3))]
+
+    def chain(parent: int, root_name: str, links: list[tuple[str, int, np.ndarray]]) -> int:
+        joints.append(BvhJointSpec(root_name, parent, None, np.zeros(3)))
+        for name, h36m, rest in links:
+            joints.append(BvhJointSpec(name, len(joints) - 1, h36m, rest))
+        return len(joints) - 1
+
+    chain(0, "RightHipRoot", [("RightUpLeg", 1, -_X), ("RightLeg", 2, -_Y), ("RightFoot", 3, -_Y)])
+    chain(0, "LeftHipRoot", [("LeftUpLeg", 4, _X), ("LeftLeg", 5, -_Y), ("LeftFoot", 6, -_Y)])
+    thorax = chain(0, "SpineRoot", [("Spine", 7, _Y), ("Thorax", 8, _Y)])
+    chain(thorax, "NeckRoot", [("Neck", 9, _Y), ("Head", 10, _Y)])
+    chain(thorax, "LeftShoulderRoot", [("LeftShoulder", 11, _X), ("LeftElbow", 12, _X), ("LeftWrist", 13, _X)])
+    chain(thorax, "RightShoulderRoot", [("RightShoulder", 14, -_X), ("RightElbow", 15, -_X), ("RightWrist", 16, -_X)])
+    return tuple(joints)
+
+
+BVH_JOINTS = _spec()
+# Joints whose rotation is the whole frame of their body part: (x from right to left, y up).
+_FRAMES = {"Hips": ((1, 4), (0, 7)), "Thorax": ((14, 11), (8, 9))}
+_END_SITES = {"RightFoot": (0.0, -0.05, 0.1), "LeftFoot": (0.0, -0.05, 0.1), "Head": (0.0, 0.1, 0.0),
+              "LeftWrist": (0.08, 0.0, 0.0), "RightWrist": (-0.08, 0.0, 0.0)}
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-9)
+
+
+def _frame(joints: np.ndarray, across: tuple[int, int], along: tuple[int, int]) -> np.ndarray:
+    """T x 3 x 3 rotations whose columns are the body part's left, up and forward axes."""
+    x = _unit(joints[:, across[1]] - joints[:, across[0]])
+    up = _unit(joints[:, along[1]] - joints[:, along[0]])
+    z = _unit(np.cross(x, up))
+    return np.stack([x, np.cross(z, x), z], axis=-1)
+
+
+def _swing(rest: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """T x 3 x 3: the smallest rotations taking the fixed unit vector ``rest`` to each ``target``."""
+    v = np.cross(rest, target)
+    s = np.linalg.norm(v, axis=-1)
+    c = np.clip((target * rest).sum(-1), -1.0, 1.0)
+    axis = np.where(s[:, None] > 1e-9, v / np.maximum(s, 1e-12)[:, None],
+                    _unit(np.cross(rest, _Y if abs(rest[1]) < 0.9 else _X))[None])
+    return Rotation.from_rotvec(axis * np.arctan2(s, c)[:, None]).as_matrix()
+
+
+@dataclass(frozen=True)
+class SkeletonMotion:
+    offsets: np.ndarray    # J x 3 rest offsets (metres) of the BVH joints
+    root: np.ndarray       # T x 3 root (pelvis) positions
+    local: np.ndarray      # T x J x 3 x 3 local rotations
+    joints: np.ndarray     # T x 17 x 3 the H36M joints on the skeleton (what forward kinematics gives)
+
+
+def solve_rotations(world_joints: np.ndarray) -> SkeletonMotion:
+    """Constant bone lengths, then per-joint rotations, for world-frame H36M joints (T x 17 x 3)."""
+    lengths = fit_skeleton(world_joints)
+    joints = apply_skeleton(world_joints, lengths)
+    length_of = {child: lengths[k] for k, (_, child) in enumerate(H36M_BONES)}
+    frames = len(joints)
+    offsets = np.array([spec.rest * length_of.get(spec.h36m, 0.0) if spec.h36m is not None else np.zeros(3)
+                        for spec in BVH_JOINTS])
+    position = np.zeros((frames, len(BVH_JOINTS), 3))
+    glob = np.zeros((frames, len(BVH_JOINTS), 3, 3))
+    children = {i: [k for k, s in enumerate(BVH_JOINTS) if s.parent == i] for i in range(len(BVH_JOINTS))}
+    for i, spec in enumerate(BVH_JOINTS):
+        position[:, i] = joints[:, spec.h36m] if spec.h36m is not None else position[:, spec.parent]
+        parent_rot = glob[:, spec.parent] if spec.parent >= 0 else np.broadcast_to(np.eye(3), (frames, 3, 3))
+        if spec.name in _FRAMES:
+            glob[:, i] = _frame(joints, *_FRAMES[spec.name])
+        elif len(children[i]) == 1:
+            child = BVH_JOINTS[children[i][0]]
+            direction = _unit(joints[:, child.h36m] - position[:, i])
+            in_parent = np.einsum("tji,tj->ti", parent_rot, direction)
+            glob[:, i] = parent_rot @ _swing(child.rest, in_parent)
+        else:
+            glob[:, i] = parent_rot
+    local = glob.copy()
+    for i, spec in enumerate(BVH_JOINTS):
+        if spec.parent >= 0:
+            local[:, i] = np.swapaxes(glob[:, spec.parent], -1, -2) @ glob[:, i]
+    return SkeletonMotion(offsets, joints[:, 0].copy(), local, joints)
+
+
+def _num(v: float) -> str:
+    return f"{round(float(v), 6) + 0.0:.6f}"  # + 0.0: no "-0.000000"
+
+
+def write_bvh(path: Path, motion: SkeletonMotion, fps: float) -> None:
+    """A BVH file of the motion (metres, y up, ZXY Euler angles in degrees), written atomically."""
+    from pipeline.core.storage import atomic_path
+
+    lines = ["HIERARCHY"]
+
+    def emit(i: int, depth: int) -> None:
+        spec, pad = BVH_JOINTS[i], "  " * depth
+        lines.append(f"{pad}{'ROOT' if spec.parent < 0 else 'JOINT'} {spec.name}")
+        lines.append(f"{pad}{{")
+        lines.append(f"{pad}  OFFSET {' '.join(_num(v) for v in motion.offsets[i])}")
+        channels = "6 Xposition Yposition Zposition" if spec.parent < 0 else "3"
+        lines.append(f"{pad}  CHANNELS {channels} Zrotation Xrotation Yrotation")
+        kids = [k for k, s in enumerate(BVH_JOINTS) if s.parent == i]
+        for k in kids:
+            emit(k, depth + 1)
+        if not kids:
+            end = _END_SITES.get(spec.name, (0.0, 0.05, 0.0))
+            lines.extend([f"{pad}  End Site", f"{pad}  {{", f"{pad}    OFFSET {' '.join(_num(v) for v in end)}",
+                          f"{pad}  }}"])
+        lines.append(f"{pad}}}")
+
+    emit(0, 0)
+    frames = len(motion.root)
+    euler = Rotation.from_matrix(motion.local.reshape(-1, 3, 3)).as_euler("ZXY", degrees=True).reshape(
+        frames, len(BVH_JOINTS), 3)
+    values = np.concatenate([motion.root, euler.reshape(frames, -1)], axis=1)
+    lines += ["MOTION", f"Frames: {frames}", f"Frame Time: {1.0 / fps:.8f}"]
+    lines += [" ".join(_num(v) for v in row) for row in values]
+    with atomic_path(Path(path)) as tmp:
+        tmp.write_text("\n".join(lines) + "\n")
+
+
+def read_back(path: Path) -> np.ndarray:
+    """The H36M joints (T x 17 x 3) of a BVH written by ``write_bvh``, by forward kinematics."""
+    from pipeline.motion.mocap.bvh import forward_kinematics, read_bvh
+
+    bvh = read_bvh(path)
+    positions, _, _ = forward_kinematics(bvh, "replace")
+    out = np.zeros((len(positions), 17, 3))
+    for spec in BVH_JOINTS:
+        if spec.h36m is not None:
+            out[:, spec.h36m] = positions[:, bvh.index(spec.name)]
+    return out

@@ -1,0 +1,90 @@
+"""World-frame motion: gravity from the body, one skeleton per clip, rotations and BVH export."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pipeline.cli import main
+from pipeline.motion.bones import apply_skeleton, bone_length_cv, fit_skeleton
+from pipeline.motion.bvh_export import read_back, solve_rotations, write_bvh
+from pipeline.motion.lifting.geometry import look_at, to_camera
+from pipeline.motion.mocap.sources import load_source
+from pipeline.motion.world import ANKLE_HEIGHT, to_world, up_error_deg
+
+
+def _pitched_view(h36m: np.ndarray, pitch_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """Root-relative camera-frame joints from a camera 4 m away at 1.4 m, pitched down by
+    ``pitch_deg``, and the true up direction in that camera's coordinates."""
+    centre = h36m[:, 0].mean(0)
+    position = centre + np.array([0.0, 0.0, 4.0])
+    position[1] = 1.4
+    rotation = look_at(position, position + np.array([0.0, -4.0 * np.tan(np.radians(pitch_deg)), -4.0]))
+    cam = to_camera(h36m, rotation, position)
+    return cam - cam[:, :1], rotation @ np.array([0.0, 1.0, 0.0])
+
+
+@pytest.fixture(scope="module")
+def dance(mocap_dir: Path) -> np.ndarray:
+    return load_source(mocap_dir, "dancedb_ucy")[0].h36m[::2]
+
+
+@pytest.mark.parametrize("pitch", [-20.0, -10.0, 0.0, 10.0, 20.0])
+def test_up_and_pitch_are_recovered_from_the_body(dance: np.ndarray, pitch: float) -> None:
+    cam, true_up = _pitched_view(dance, pitch)
+    world, camera = to_world(cam)
+    assert up_error_deg(camera, true_up) < 3.0
+    assert abs(camera.pitch_deg - pitch) < 3.0 and abs(camera.roll_deg) < 3.0
+    assert (world[:, 10, 1] > world[:, 0, 1]).mean() > 0.99  # y is up: the head is above the pelvis
+    lowest = np.minimum(world[:, 3, 1], world[:, 6, 1])
+    assert np.allclose(lowest, ANKLE_HEIGHT)  # the floor is y = 0 under the lower ankle
+
+
+def test_one_skeleton_makes_bones_constant_and_keeps_directions() -> None:
+    rng = np.random.default_rng(0)
+    rest = np.array([[0, 1, 0], [-.1, 1, 0], [-.1, .55, 0], [-.1, .1, 0], [.1, 1, 0], [.1, .55, 0], [.1, .1, 0],
+                     [0, 1.25, 0], [0, 1.5, 0], [0, 1.6, .05], [0, 1.75, 0], [.2, 1.45, 0], [.45, 1.45, 0],
+                     [.7, 1.45, 0], [-.2, 1.45, 0], [-.45, 1.45, 0], [-.7, 1.45, 0]], float)
+    noisy = rest[None] + rng.normal(0, 0.02, (50, 17, 3))  # a lifter's wandering bones
+    assert bone_length_cv(noisy) > 0.05
+    lengths = fit_skeleton(noisy)
+    fitted = apply_skeleton(noisy, lengths)
+    assert bone_length_cv(fitted) < 1e-9
+    assert lengths[1] == lengths[4] and lengths[11] == lengths[14]  # left and right thigh, upper arm agree
+    # Each bone keeps its direction; the root does not move.
+    a, b = noisy[:, 2] - noisy[:, 1], fitted[:, 2] - fitted[:, 1]
+    cosine = (a * b).sum(-1) / np.linalg.norm(a, axis=-1) / np.linalg.norm(b, axis=-1)
+    assert cosine.min() > 1 - 1e-9 and np.array_equal(fitted[:, 0], noisy[:, 0])
+
+
+def test_bvh_round_trip_gives_the_joints_back_within_a_millimetre(dance: np.ndarray, tmp_path: Path) -> None:
+    cam, _ = _pitched_view(dance, 15.0)
+    world, _ = to_world(cam)
+    motion = solve_rotations(world)
+    write_bvh(tmp_path / "clip.bvh", motion, 24.0)
+    back = read_back(tmp_path / "clip.bvh")
+    assert np.abs(back - motion.joints).max() < 1e-3
+    text = (tmp_path / "clip.bvh").read_text()
+    assert f"Frames: {len(dance)}\nFrame Time: 0.04166667\n" in text and "-0.000000" not in text
+    # The skeleton fit moves joints by millimetres on real capture, not centimetres.
+    assert np.linalg.norm(motion.joints - world, axis=-1).mean() < 0.01
+
+
+def test_export_bvh_writes_one_clip_of_a_motion_file(dance: np.ndarray, tmp_path: Path, capsys) -> None:
+    from pipeline.motion.motionfile import MotionClip, write_motion
+
+    cam, _ = _pitched_view(dance, 10.0)
+    n = len(cam)
+    clip = MotionClip("vid_000_1_0", 1, np.arange(n, dtype=np.int32), np.arange(n) / 24.0, cam.astype(np.float32),
+                      np.zeros(n, bool), np.zeros(n, np.int8))
+    motion = tmp_path / "vid_000.parquet"
+    write_motion(motion, [clip], {"segment_id": "vid_000", "fps": 24.0, "width": 1920, "height": 1080},
+                 fingerprint="x", params={}, inputs={})
+    assert main(["export", "bvh", str(motion), "vid_000_1_0", str(tmp_path / "out.bvh")]) == 0
+    out = capsys.readouterr().out
+    assert "camera pitch +1" in out and "bone-length CV" in out
+    assert read_back(tmp_path / "out.bvh").shape == (n, 17, 3)
+    assert main(["export", "bvh", str(motion), "nope", str(tmp_path / "x.bvh")]) == 2
+    assert "no clip 'nope'; clips: vid_000_1_0" in capsys.readouterr().err
