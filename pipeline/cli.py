@@ -102,9 +102,10 @@ def _parser() -> argparse.ArgumentParser:
         "bvh", help="one clip as a BVH file (world frame, y up, metres, one skeleton)",
         description="Turn one clip of a motion file (data/pose3d, data/smooth or data/motion24) into a BVH file: "
                     "rotated from the camera frame into a y-up world frame (up from the body's long axis over "
-                    "the clip; the lowest ankle on the floor, y = 0), constant bone lengths (the clip's medians, "
-                    "left and right averaged), joint rotations on that skeleton (ZXY Euler angles), metres, "
-                    "the file's frame rate. Blender: File > Import > Motion Capture (.bvh), scale 1.",
+                    "the clip) with the root's path where the file has it, the floor at y = 0, constant bone "
+                    "lengths (the clip's medians, left and right averaged), joint rotations on that skeleton "
+                    "(ZXY Euler angles), metres, the file's frame rate. "
+                    "Blender: File > Import > Motion Capture (.bvh), scale 1.",
         epilog="the estimated camera pitch and roll and how far the skeleton fit moved the joints are printed")
     bvh.add_argument("motion", type=Path, help="a motion Parquet file")
     bvh.add_argument("clip_id", help="the clip to export (see the file's clip_id column)")
@@ -450,8 +451,9 @@ def _export_bvh(args: argparse.Namespace) -> int:
     if args.clip_id not in clips:
         print(f"dance3d: {args.motion}: no clip {args.clip_id!r}; clips: {', '.join(clips) or 'none'}", file=sys.stderr)
         return 2
-    joints = clips[args.clip_id].joints.astype(np.float64)
-    world, camera = to_world(joints)
+    clip = clips[args.clip_id]
+    joints = clip.joints.astype(np.float64)
+    world, camera = to_world(joints, root=None if clip.root is None else clip.root.astype(np.float64))
     motion = solve_rotations(world)
     write_bvh(args.out, motion, float(read_meta(args.motion).get("fps", 24.0)))
     moved = np.linalg.norm(motion.joints - world, axis=-1)

@@ -3,7 +3,9 @@
 Columns: clip_id, track_id, frame (on the file's frame grid), time (s, segment clock),
 joints (H36M-17 x (x, y, z), metres, root-relative, camera frame: x right, y down,
 z away from the camera), interpolated (the 2D pose of that frame was filled in by clean),
-filled_joints (how many 2D joints were filled because their confidence was low).
+filled_joints (how many 2D joints were filled because their confidence was low), root (the
+root's position in the camera frame, metres, from the pose and its 2D keypoints with a
+focal length assumed from the frame size: pipeline/motion/trajectory.py; schema 2).
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import pyarrow.parquet as pq
 
 from pipeline.core.storage import column_array, fixed_list, read_meta, write_parquet
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 MOTION_SCHEMA = pa.schema(
     [
         ("clip_id", pa.string()),
@@ -28,6 +30,7 @@ MOTION_SCHEMA = pa.schema(
         ("joints", pa.list_(pa.float32(), 51)),
         ("interpolated", pa.bool_()),
         ("filled_joints", pa.int8()),
+        ("root", pa.list_(pa.float32(), 3)),
     ]
 )
 
@@ -41,6 +44,7 @@ class MotionClip:
     joints: np.ndarray        # n x 17 x 3
     interpolated: np.ndarray  # n bool
     filled_joints: np.ndarray  # n int
+    root: np.ndarray | None = None  # n x 3 root path, camera frame, metres (None: not known)
 
 
 def clips_to_table(clips: list[MotionClip]) -> pa.Table:
@@ -58,6 +62,8 @@ def clips_to_table(clips: list[MotionClip]) -> pa.Table:
         fixed_list(cat("joints").reshape(-1, 51)),
         pa.array(cat("interpolated"), pa.bool_()),
         pa.array(cat("filled_joints"), pa.int8()),
+        fixed_list(np.concatenate([c.root if c.root is not None else np.full((len(c.frame), 3), np.nan)
+                                   for c in clips])),
     ], schema=MOTION_SCHEMA)
 
 
@@ -100,9 +106,11 @@ def read_clips(path: Path) -> list[MotionClip]:
     track = column_array(table, "track_id")
     interp = column_array(table, "interpolated")
     filled = column_array(table, "filled_joints")
+    root = column_array(table, "root", (3,)) if "root" in table.column_names else None
     clips = []
     for clip_id in dict.fromkeys(ids):  # file order
         rows = np.flatnonzero(ids == clip_id)
+        path = None if root is None or np.isnan(root[rows]).all() else root[rows]
         clips.append(MotionClip(clip_id, int(track[rows[0]]), frame[rows], time[rows], joints[rows],
-                                interp[rows], filled[rows]))
+                                interp[rows], filled[rows], path))
     return clips

@@ -101,7 +101,8 @@ def smooth_segment(job: SmoothJob) -> dict:
     clips, qc = [], {}
     for clip in motion.clips:
         trend = hp_trend(clip.joints.reshape(len(clip.joints), -1), job.lamb).reshape(clip.joints.shape)
-        clips.append(replace(clip, joints=trend.astype(np.float32)))
+        root = None if clip.root is None else hp_trend(clip.root.astype(np.float64), job.lamb).astype(np.float32)
+        clips.append(replace(clip, joints=trend.astype(np.float32), root=root))
         qc[clip.clip_id] = {
             "frames": int(len(clip.frame)),
             "mean_acc_before": round(mean_acceleration(clip.joints, motion.fps), 3),

@@ -4,8 +4,10 @@ world frame: y up, the floor at y = 0, the dancer facing +z when facing the came
 Up is estimated from the body: over a clip a dancer stands upright on average, so the robust
 mean of the body's long axis (pelvis to thorax, ankles to pelvis) is the direction opposite
 gravity. Its tilt in the camera frame is the camera's pitch and roll, recorded with the motion.
-Without a root trajectory the lowest ankle is set on the floor in every frame (an ankle sits
-``ANKLE_HEIGHT`` above the floor), so crouches are kept but jumps are not seen.
+With a root trajectory (``trajectory.root_from_2d``) the body travels and jumps, and the floor
+is where the lower ankle rests most of the time (its 5th percentile height, an ankle sitting
+``ANKLE_HEIGHT`` above the floor). Without one, the lower ankle is set on the floor in every
+frame: crouches are kept, jumps are not seen.
 """
 
 from __future__ import annotations
@@ -55,13 +57,21 @@ def estimate_camera(joints_cam: np.ndarray) -> CameraEstimate:
     return CameraEstimate(rotation, pitch, roll)
 
 
-def to_world(joints_cam: np.ndarray, camera: CameraEstimate | None = None) -> tuple[np.ndarray, CameraEstimate]:
-    """Root-relative camera-frame joints (T x 17 x 3) -> world joints with the floor at y = 0,
-    the pelvis above the origin, the lowest ankle ``ANKLE_HEIGHT`` above the floor."""
+def to_world(joints_cam: np.ndarray, camera: CameraEstimate | None = None,
+             root: np.ndarray | None = None) -> tuple[np.ndarray, CameraEstimate]:
+    """Root-relative camera-frame joints (T x 17 x 3), and optionally the root's camera-frame path
+    (T x 3), -> world joints with the floor at y = 0 and the root starting above the origin."""
     camera = camera or estimate_camera(joints_cam)
-    world = (joints_cam - joints_cam[:, :1]) @ camera.rotation.T
+    rel = joints_cam - joints_cam[:, :1]
+    if root is None:
+        world = rel @ camera.rotation.T
+        lowest = np.minimum(world[:, 3, 1], world[:, 6, 1])
+        world[..., 1] += (ANKLE_HEIGHT - lowest)[:, None]
+        return world, camera
+    world = (rel + root[:, None]) @ camera.rotation.T
     lowest = np.minimum(world[:, 3, 1], world[:, 6, 1])
-    world[..., 1] += (ANKLE_HEIGHT - lowest)[:, None]
+    world[..., 1] += ANKLE_HEIGHT - np.percentile(lowest, 5)
+    world[..., [0, 2]] -= world[0, 0, [0, 2]]
     return world, camera
 
 

@@ -113,12 +113,18 @@ def lift_segment(lifter: Lifter, job: LiftJob) -> dict:
     """All clips of a segment in one ONNX call; writes the segment's 3D motion table."""
     from pipeline.annotate.clipfile import read_clean
     from pipeline.motion.motionfile import MotionClip, write_motion
+    from pipeline.motion.trajectory import assumed_focal, root_from_2d
 
     clean = read_clean(job.clean)
+    width, height = clean.segment.width, clean.segment.height
     filled = [fill_low_confidence(c.keypoints, job.min_score) for c in clean.clips]
-    lifted = lifter.lift([f[0] for f in filled], clean.segment.width, clean.segment.height, flip=job.flip)
+    lifted = lifter.lift([f[0] for f in filled], width, height, flip=job.flip)
+    focal = assumed_focal(width, height)
+    roots = [root_from_2d(joints, f[0], focal, width, height, scores=c.keypoints[..., 2]).astype(np.float32)
+             for c, joints, f in zip(clean.clips, lifted, filled)]
     clips = [MotionClip(c.clip_id, c.track_id, c.frame.astype(np.int32), clean.time(c), joints, c.interpolated,
-                        f[1].sum(1).astype(np.int8)) for c, joints, f in zip(clean.clips, lifted, filled)]
+                        f[1].sum(1).astype(np.int8), root)
+             for c, joints, f, root in zip(clean.clips, lifted, filled, roots)]
     segment = {"segment_id": clean.segment.segment_id, "fps": clean.segment.fps, "width": clean.segment.width,
                "height": clean.segment.height}
     write_motion(job.out, clips, segment, fingerprint=job.fingerprint, params=job.params, inputs=job.inputs)
