@@ -28,10 +28,11 @@ def horizontal_speed(world: np.ndarray, fps: float) -> np.ndarray:
     return np.linalg.norm(np.gradient(xz, axis=0), axis=-1) * fps
 
 
-def foot_contact(world: np.ndarray, fps: float, height: float = 0.05, speed: float = 0.3,
+def foot_contact(world: np.ndarray, fps: float, height: float = 0.10, speed: float = 0.3,
                  min_frames: int = 3) -> np.ndarray:
-    """T x 2 contact flags (left, right): ankle within ``height`` m of its resting height and
-    moving slower than ``speed`` m/s horizontally, for at least ``min_frames`` frames."""
+    """T x 2 contact flags (left, right): ankle within ``height`` m of its resting height (10 cm:
+    a dancer on the ball of the foot is still standing) and moving slower than ``speed`` m/s
+    horizontally, for at least ``min_frames`` frames."""
     low = world[:, list(ANKLES), 1] < ANKLE_HEIGHT + height
     contact = low & (horizontal_speed(world, fps) < speed)
     for foot in range(2):

@@ -88,3 +88,37 @@ def test_export_bvh_writes_one_clip_of_a_motion_file(dance: np.ndarray, tmp_path
     assert read_back(tmp_path / "out.bvh").shape == (n, 17, 3)
     assert main(["export", "bvh", str(motion), "nope", str(tmp_path / "x.bvh")]) == 2
     assert "no clip 'nope'; clips: vid_000_1_0" in capsys.readouterr().err
+
+
+def test_the_root_path_is_where_the_pose_projects(dance: np.ndarray) -> None:
+    from pipeline.motion.lifting.evaluate import PROTOCOL_CAMERAS, view
+    from pipeline.motion.mocap.skeleton import coco_from_h36m
+    from pipeline.motion.trajectory import align_scale_offset, root_from_2d
+
+    camera = PROTOCOL_CAMERAS[1]
+    xy, joints = view(dance, coco_from_h36m(dance), camera)
+    root = root_from_2d(joints - joints[:, :1], xy, camera.focal_px, camera.width, camera.height)
+    # Exact but for COCO's wider hips: millimetres.
+    assert np.linalg.norm(root - joints[:, 0], axis=-1).mean() < 0.01
+    # A pose 10 % too large puts the body 10 % too far: one scale per clip takes that out.
+    big = root_from_2d(1.1 * (joints - joints[:, :1]), xy, camera.focal_px, camera.width, camera.height)
+    assert np.linalg.norm(big - joints[:, 0], axis=-1).mean() > 0.3
+    assert np.linalg.norm(align_scale_offset(big, joints[:, 0]) - joints[:, 0], axis=-1).mean() < 0.01
+
+
+def test_pinned_feet_stop_sliding_and_keep_the_legs(dance: np.ndarray) -> None:
+    from pipeline.motion.contact import foot_contact, pin_feet, skating
+
+    fps = 15.0  # the fixture keeps every second frame of 30 fps capture
+    world, _ = to_world(dance - dance[:, :1], root=dance[:, 0] - dance[0, 0])
+    contact = foot_contact(world, fps)
+    assert 0.2 < contact.mean() < 0.95  # a dancer stands on a foot much of the time
+    assert skating(world, contact, fps) < 0.15  # motion capture barely slides (m/s)
+    # A lifter-like wobble: the whole body drifts back and forth by 5 cm.
+    sliding = world + 0.05 * np.sin(np.arange(len(world)) / 2.0)[:, None, None] * np.array([1.0, 0.0, 0.0])
+    before = skating(sliding, contact, fps)
+    pinned = pin_feet(sliding, contact)
+    assert skating(pinned, contact, fps) < 0.4 * before
+    for hip, knee, ankle in ((4, 5, 6), (1, 2, 3)):
+        thigh = np.linalg.norm(pinned[:, knee] - pinned[:, hip], axis=-1)
+        assert np.ptp(thigh[contact.any(1)]) < 0.02  # the leg keeps its length (bent, not stretched)
