@@ -1,5 +1,6 @@
 """shard stage: data/motion24 + data/audio_features -> data/corpus/{train,val}/shard-NNNNN.parquet,
-data/corpus/card.md (+ durations.png, alignment.png), metrics/corpus.json, metrics/durations.csv."""
+data/corpus/README.md (the dataset card with Hugging Face metadata; + durations.png, alignment.png),
+metrics/corpus.json, metrics/durations.csv."""
 
 from __future__ import annotations
 

@@ -82,11 +82,22 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     corpus = json.loads((root / "metrics/corpus.json").read_text())
     assert windows == corpus["windows_train"] + corpus["windows_val"] > 0
     assert corpus["clips_without_audio"] == 2  # the silent solo clip's two segments
-    assert "## Statistics" in (root / "data/corpus/card.md").read_text()
+    assert "## Statistics" in (root / "data/corpus/README.md").read_text()
     alignment = corpus["beat_alignment"]  # matched and shuffled music, on the demo's windows
     assert alignment["windows"] == windows and 0 <= alignment["matched_beat_align_score"] <= 1
     assert 0 <= alignment["shuffled_beat_align_score"] <= 1
-    assert "## Motion–music alignment" in (root / "data/corpus/card.md").read_text()
+    assert "## Motion–music alignment" in (root / "data/corpus/README.md").read_text()
+    # World-grounded columns: y up, the floor under the feet, one skeleton, rotations; any reader finds the splits.
+    world = pq.read_table(shards[0], columns=["world_joints", "root", "contact", "rotations_6d", "bone_lengths",
+                                              "camera_pitch"]).to_pylist()[0]
+    joints = np.array(world["world_joints"])
+    assert np.isfinite(joints).all() and (joints[:, 10, 1] > joints[:, 0, 1]).mean() > 0.9
+    assert joints[:, [3, 6], 1].min() > -0.15 and np.allclose(np.array(world["root"]), joints[:, 0], atol=1e-6)
+    assert len(world["bone_lengths"]) == 16 and -45 < world["camera_pitch"] < 45
+    import datasets
+
+    loaded = datasets.load_dataset(str(root / "data/corpus"), cache_dir=str(tmp_path / "hf"))
+    assert sum(len(split) for split in loaded.values()) == windows and "train" in loaded
     beats = pq.read_table(shards[0], columns=["beat", "beat_frames", "motion_beat_frames"]).to_pylist()[0]
     assert beats["beat_frames"] == [i for i, flag in enumerate(beats["beat"]) if flag]  # flags and frames agree
     assert beats["motion_beat_frames"]

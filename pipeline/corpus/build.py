@@ -17,12 +17,15 @@ from pipeline.corpus.card import (
     alignment_png,
     channel_stats,
     durations_csv,
+    hf_front_matter,
     histogram_png,
     render_card,
     style_stats,
 )
 from pipeline.corpus.windows import FPS, SCHEMA_VERSION, Window, split_of, window_starts, windows_table
 from pipeline.ingest.catalog import read_index, read_ledger
+from pipeline.motion.grounding import ROTATION_JOINTS, ground_clip
+from pipeline.motion.mocap.skeleton import H36M17, H36M_BONES
 from pipeline.motion.motionfile import clip_frame_counts, read_motion
 from pipeline.music.alignment import beat_align_score, beat_f1, kinematic_beats, shuffled_pairs
 from pipeline.music.featurefile import FeatureFile, read_features
@@ -73,6 +76,8 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
                       if k + window <= feats.frames]
             if not starts:
                 counts["clips_too_short"] += 1
+                continue
+            grounded = ground_clip(clip.joints, clip.root, fps)
             for k in starts:
                 i = k - int(clip.frame[0])
                 joints = clip.joints[i: i + window]
@@ -83,9 +88,13 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
                         "licence": video.get("licence", ""), "segment_id": seg_id, "clip_id": clip.clip_id,
                         "track_id": clip.track_id, "start_frame": k, "start_time": k / fps,
                         "segment_start": seg["start"], "tempo": feats.tempo,
-                        **window_beats(feats, joints, k, window, fps)}
+                        "bone_lengths": grounded.bone_lengths, "camera_pitch": grounded.pitch_deg,
+                        "camera_roll": grounded.roll_deg, **window_beats(feats, joints, k, window, fps)}
+                world = grounded.joints[i: i + window].copy()
+                world[..., [0, 2]] -= world[0, 0, [0, 2]]  # x/z from the window's first root position
                 windows.append(Window(meta, joints, feats.mfcc[k: k + window], feats.chroma[k: k + window],
-                                      feats.onset[k: k + window], feats.beat[k: k + window]))
+                                      feats.onset[k: k + window], feats.beat[k: k + window], world,
+                                      grounded.contact[i: i + window], grounded.rotations_6d[i: i + window]))
     return windows, counts
 
 
@@ -127,6 +136,8 @@ def write_shards(root: Path, windows: list[Window], window: int, per_shard: int,
             table = windows_table(rows[start: start + per_shard], window)
             write_parquet(table, folder / f"shard-{n:05d}.parquet", schema_version=SCHEMA_VERSION, params=params,
                           extra={"fps": fps, "window_frames": window, "joints": "h36m17", "units": "metres",
+                                 "rotation_joints": ",".join(ROTATION_JOINTS),
+                                 "bones": ",".join(f"{H36M17[a]}-{H36M17[b]}" for a, b in H36M_BONES),
                                  "alignment": f"motion and audio frame k centred at k/{fps:g} s on the segment clock"},
                           row_group_size=row_group)
         written[split] = len(rows)
@@ -175,8 +186,11 @@ def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, para
         alignment_png(root / CORPUS / "alignment.png", typical.motion, typical.meta["beat_frames"],
                       typical.meta["motion_beat_frames"], fps,
                       f"{typical.meta['window_id']}: beat-align score {typical.meta['beat_align_score']:.2f}")
-    with atomic_path(root / CORPUS / "card.md") as tmp:
-        tmp.write_text(render_card(stats, ledger, card_params, totals, alignment, style_stats(metas)))
+    with atomic_path(root / CORPUS / "README.md") as tmp:
+        splits = [s for s, n in (("train", totals["windows_train"]), ("val", totals["windows_val"])) if n]
+        tmp.write_text(hf_front_matter(splits) + render_card(stats, ledger, card_params, totals, alignment,
+                                                           style_stats(metas)))
+    (root / CORPUS / "card.md").unlink(missing_ok=True)  # the card's name before schema 4
     durations_csv(root / METRICS / "durations.csv", {"videos": series["source videos"],
                                                      "segments": series["trimmed segments"], "clips": clip_seconds})
     total = stats[-1] if stats else {}

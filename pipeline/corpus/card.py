@@ -1,4 +1,5 @@
-"""The dataset card (data/corpus/card.md), its statistics table and duration histograms."""
+"""The dataset card (data/corpus/README.md, with Hugging Face metadata), its statistics table and
+duration histograms."""
 
 from __future__ import annotations
 
@@ -133,6 +134,16 @@ def style_stats(metas: list[dict]) -> list[dict]:
             for style, r in sorted(counts.items(), key=lambda kv: (-(kv[1]["train"] + kv[1]["val"]), kv[0]))]
 
 
+def hf_front_matter(splits: list[str]) -> str:
+    """Hugging Face dataset-card metadata: `datasets.load_dataset(<corpus folder>)` finds the
+    splits that have shards (val is named `validation`, as the Hub names it)."""
+    files = "".join(f"  - split: {'validation' if s == 'val' else s}\n    path: {s}/*.parquet\n" for s in splits)
+    return ("---\npretty_name: dance3d corpus\nlicense: other\nlicense_name: per-source\n"
+            "license_details: every window inherits the licence of its source video (columns licence, url)\n"
+            "tags:\n- dance\n- motion-capture\n- 3d-human-pose\n- music\n"
+            f"configs:\n- config_name: default\n  data_files:\n{files}---\n\n")
+
+
 def render_card(stats: list[dict], ledger: list[dict], params: dict, totals: dict,
                 alignment: dict | None = None, styles: list[dict] | None = None) -> str:
     window, hop = params["window_seconds"], params["hop_seconds"]
@@ -170,6 +181,12 @@ PyTorch loader is `pipeline.train.dataset.WindowDataset`. Each file's key-value 
 | start_frame, start_time | int32, float64 | first frame k of the window and k/{fps:g} s, on the segment clock |
 | segment_start | float64 | where the segment starts in the source video (s) |
 | motion | {round(window * fps)} x 17 x 3 float32 | Human3.6M-17 joints, metres, root-relative, camera frame (x right, y down, z away) |
+| world_joints | {round(window * fps)} x 17 x 3 float32 | the same joints in a gravity-aligned world frame: y up, floor at y = 0, x/z in metres from the root at the window's first frame; the root travels and jumps (its path from where the pose projects), one skeleton per clip (constant bone lengths), feet pinned while in contact |
+| root | {round(window * fps)} x 3 float32 | the pelvis of world_joints: the root trajectory |
+| contact | {round(window * fps)} x 2 int8 | 1 while the left / right foot is on the floor (ankle within 10 cm of rest, slower than 0.3 m/s) |
+| rotations_6d | {round(window * fps)} x 23 x 6 float32 | local joint rotations on the clip's skeleton, 6D (first two columns of each 3 x 3 rotation), joints in the order of `dance3d export bvh`'s hierarchy (file metadata `rotation_joints`); T-pose rest, y up, facing +z |
+| bone_lengths | 16 float32 | the clip's skeleton (metres; bones in the order of the file metadata `bones`) |
+| camera_pitch, camera_roll | float32 | the camera's estimated tilt (degrees; pitch > 0: looking down), from the body's long axis over the clip |
 | mfcc | {round(window * fps)} x 39 float32 | MFCC-13, deltas, delta-deltas |
 | chroma | {round(window * fps)} x 12 float32 | chroma (STFT) |
 | onset | {round(window * fps)} float32 | onset strength |

@@ -18,13 +18,17 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 
-SCHEMA_VERSION = 3  # 2: beat, downbeat and motion-beat frames, alignment scores; any frame rate. 3: tags
+SCHEMA_VERSION = 4  # 2: beat, downbeat and motion-beat frames, alignment scores; any frame rate. 3: tags.
+#                    4: world-frame joints, root path, foot contact, bone lengths, 6D rotations, camera pitch/roll
 FPS = 24  # the default corpus rate
 MFCC_DIMS = 39
 # A window built without beat analysis (tests, benchmarks) has no beats: empty lists, NaN scores.
+WORLD_DEFAULTS = {"camera_pitch": float("nan"), "camera_roll": float("nan")}
 BEAT_DEFAULTS = {"beat_frames": [], "downbeat_frames": [], "motion_beat_frames": [], "beat_align_score": float("nan"),
                  "beat_f1": float("nan")}
 CHROMA_DIMS = 12
+BONES = 16
+ROTATION_JOINTS = 23  # pipeline.motion.grounding.ROTATION_JOINTS (the BVH skeleton's joints)
 
 
 def window_starts(first_frame: int, n_frames: int, window: int, hop: int) -> list[int]:
@@ -49,6 +53,12 @@ def corpus_schema(window: int) -> pa.Schema:
         ("segment_id", pa.string()), ("clip_id", pa.string()), ("track_id", pa.int32()),
         ("start_frame", pa.int32()), ("start_time", pa.float64()), ("segment_start", pa.float64()),
         ("motion", fixed(fixed(fixed(pa.float32(), 3), 17), window)),
+        ("world_joints", fixed(fixed(fixed(pa.float32(), 3), 17), window)),  # y up, floor 0, x/z from window start
+        ("root", fixed(fixed(pa.float32(), 3), window)),                      # world_joints' pelvis: the path
+        ("contact", fixed(fixed(pa.int8(), 2), window)),                      # left, right foot on the floor
+        ("rotations_6d", fixed(fixed(fixed(pa.float32(), 6), ROTATION_JOINTS), window)),
+        ("bone_lengths", fixed(pa.float32(), BONES)),                         # the clip's one skeleton (m)
+        ("camera_pitch", pa.float32()), ("camera_roll", pa.float32()),         # degrees, estimated per clip
         ("mfcc", fixed(fixed(pa.float32(), MFCC_DIMS), window)),
         ("chroma", fixed(fixed(pa.float32(), CHROMA_DIMS), window)),
         ("onset", fixed(pa.float32(), window)),
@@ -70,6 +80,9 @@ class Window:
     chroma: np.ndarray    # W x 12
     onset: np.ndarray     # W
     beat: np.ndarray      # W
+    world: np.ndarray | None = None      # W x 17 x 3 world joints (None: NaN columns)
+    contact: np.ndarray | None = None    # W x 2
+    rotations: np.ndarray | None = None  # W x ROTATION_JOINTS x 6
 
 
 def _nested(values: np.ndarray, dtype: pa.DataType, shape: tuple[int, ...]) -> pa.Array:
@@ -81,13 +94,20 @@ def _nested(values: np.ndarray, dtype: pa.DataType, shape: tuple[int, ...]) -> p
 
 def windows_table(windows: list[Window], window: int) -> pa.Table:
     schema = corpus_schema(window)
-    scalars = {name: [w.meta.get(name, BEAT_DEFAULTS.get(name)) if name in BEAT_DEFAULTS else w.meta[name]
-                      for w in windows] for name in schema.names
-               if name not in ("motion", "mfcc", "chroma", "onset", "beat")}
+    tensors = ("motion", "mfcc", "chroma", "onset", "beat", "world_joints", "root", "contact", "rotations_6d",
+               "bone_lengths")
+    scalars = {name: [w.meta.get(name, WORLD_DEFAULTS.get(name, BEAT_DEFAULTS.get(name)))
+                      if name in BEAT_DEFAULTS or name in WORLD_DEFAULTS else w.meta[name]
+                      for w in windows] for name in schema.names if name not in tensors}
     n = len(windows)
 
     def stack(attr: str, shape: tuple) -> np.ndarray:
-        return np.stack([getattr(w, attr) for w in windows]) if n else np.zeros((0, *shape))
+        return np.stack([getattr(w, attr) if getattr(w, attr) is not None else np.full(shape, np.nan)
+                         for w in windows]) if n else np.zeros((0, *shape))
+
+    world = stack("world", (window, 17, 3))
+    lengths = np.stack([np.asarray(w.meta.get("bone_lengths", np.full(BONES, np.nan)), np.float32)
+                        for w in windows]) if n else np.zeros((0, BONES))
 
     arrays = {
         "motion": _nested(stack("motion", (window, 17, 3)).astype(np.float32), pa.float32(), (window, 17, 3)),
@@ -96,6 +116,12 @@ def windows_table(windows: list[Window], window: int) -> pa.Table:
                           (window, CHROMA_DIMS)),
         "onset": _nested(stack("onset", (window,)).astype(np.float32), pa.float32(), (window,)),
         "beat": _nested(stack("beat", (window,)).astype(np.int8), pa.int8(), (window,)),
+        "world_joints": _nested(world.astype(np.float32), pa.float32(), (window, 17, 3)),
+        "root": _nested(world[:, :, 0].astype(np.float32), pa.float32(), (window, 3)),
+        "contact": _nested(np.nan_to_num(stack("contact", (window, 2))).astype(np.int8), pa.int8(), (window, 2)),
+        "rotations_6d": _nested(stack("rotations", (window, ROTATION_JOINTS, 6)).astype(np.float32), pa.float32(),
+                                (window, ROTATION_JOINTS, 6)),
+        "bone_lengths": _nested(lengths.astype(np.float32), pa.float32(), (BONES,)),
     }
     columns = [arrays[f.name] if f.name in arrays else pa.array(scalars[f.name], f.type) for f in schema]
     return pa.Table.from_arrays(columns, schema=schema)

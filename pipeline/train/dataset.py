@@ -28,11 +28,11 @@ def shard_files(folder: Path) -> list[Path]:
     return sorted(Path(folder).glob("shard-*.parquet"))
 
 
-def decode_batch(table) -> list[dict]:
-    """Rows of a corpus table as numpy arrays: motion (W x 51), audio (W x 27)."""
+def decode_batch(table, motion_column: str = "motion") -> list[dict]:
+    """Rows of a corpus table as numpy arrays: motion (W x 51, from ``motion_column``), audio (W x 27)."""
     n = table.num_rows
     # Rows are zero-copy views of the Arrow buffers (read-only; the DataLoader's collation copies them).
-    motion = np.asarray(table.column("motion").combine_chunks().flatten().flatten().flatten(), np.float32)
+    motion = np.asarray(table.column(motion_column).combine_chunks().flatten().flatten().flatten(), np.float32)
     motion = motion.reshape(n, -1, 51)
     frames = motion.shape[1]
     mfcc = np.asarray(table.column("mfcc").combine_chunks().flatten().flatten(), np.float32).reshape(n, frames, -1)
@@ -43,8 +43,14 @@ def decode_batch(table) -> list[dict]:
 
 
 class WindowDataset(IterableDataset):
+    """``motion="camera"``: root-relative camera-frame joints (the ``motion`` column); ``"world"``:
+    y-up world joints with the root's path and the floor at 0 (``world_joints``, schema 4)."""
+
     def __init__(self, folder: Path, *, shuffle_buffer: int = 256, seed: int = 0, shuffle: bool = True,
-                 groups_per_unit: int = 8) -> None:
+                 groups_per_unit: int = 8, motion: str = "camera") -> None:
+        if motion not in ("camera", "world"):
+            raise ValueError(f"motion must be 'camera' or 'world', not {motion!r}")
+        self.motion_column = "motion" if motion == "camera" else "world_joints"
         self.files = shard_files(folder)
         self.units = []
         for f in self.files:
@@ -71,12 +77,12 @@ class WindowDataset(IterableDataset):
     def __iter__(self) -> Iterator[dict]:
         rng = random.Random(self.seed * 1000 + self.epoch * 7 + (get_worker_info().id if get_worker_info() else 0))
         buffer: list[dict] = []
-        columns = ["window_id", "motion", "mfcc", "beat"]
+        columns = ["window_id", self.motion_column, "mfcc", "beat"]
         files: dict[Path, pq.ParquetFile] = {}
         for path, groups in self._my_units():
             if path not in files:
                 files[path] = pq.ParquetFile(path)
-            rows = decode_batch(files[path].read_row_groups(list(groups), columns=columns))
+            rows = decode_batch(files[path].read_row_groups(list(groups), columns=columns), self.motion_column)
             for row in rows:
                 if not self.shuffle:
                     yield _tensors(row)

@@ -96,7 +96,21 @@ def test_shards_round_trip_through_pyarrow_pandas_and_datasets(corpus) -> None:
         assert np.array_equal(np.array(record["motion"], np.float32), by_id[record["window_id"]].motion)
         assert np.array_equal(np.array(record["beat"], np.int8), by_id[record["window_id"]].beat)
     meta = pq.read_schema(files[0]).metadata[b"dance3d"]
-    assert b'"schema_version": 3' in meta and b'"fps": 24' in meta
+    assert b'"schema_version": 4' in meta and b'"fps": 24' in meta
+    assert b"LeftShoulderRoot" in meta and b"left_hip-left_knee" in meta  # rotation joint and bone names
+
+
+def test_the_card_lets_datasets_find_both_splits_with_no_arguments(corpus, tmp_path: Path) -> None:
+    import datasets
+
+    from pipeline.corpus.card import hf_front_matter
+
+    folder, windows = corpus
+    (folder / "README.md").write_text(hf_front_matter(["train", "val"]) + "# dance3d corpus\n")
+    loaded = datasets.load_dataset(str(folder), cache_dir=str(tmp_path / "hf"))
+    assert set(loaded) == {"train", "validation"}
+    assert len(loaded["train"]) + len(loaded["validation"]) == len(windows)
+    assert {"world_joints", "root", "contact", "rotations_6d", "bone_lengths"} <= set(loaded["train"].column_names)
 
 
 def test_loader_yields_every_window_once_per_epoch_across_two_workers(corpus) -> None:
@@ -110,6 +124,10 @@ def test_loader_yields_every_window_once_per_epoch_across_two_workers(corpus) ->
         assert sorted(seen) == expected  # each exactly once
     batch = next(iter(DataLoader(dataset, batch_size=2)))
     assert batch["motion"].shape == (2, 48, 51) and batch["audio"].shape == (2, 48, 27)
+    world = next(iter(DataLoader(WindowDataset(folder / "train", motion="world"), batch_size=2)))
+    assert world["motion"].shape == (2, 48, 51)  # the world_joints column (NaN here: synthetic windows)
+    with pytest.raises(ValueError, match="motion must be 'camera' or 'world'"):
+        WindowDataset(folder / "train", motion="pixels")
 
 
 def test_training_lowers_the_loss_clearly(corpus) -> None:
