@@ -96,6 +96,9 @@ def _parser() -> argparse.ArgumentParser:
     render.add_argument("motion", type=Path, help="a motion Parquet file")
     render.add_argument("clip_id", help="the clip to draw (see the file's clip_id column)")
     render.add_argument("out", type=Path, help="the mp4 to write")
+    render.add_argument("--world", action="store_true",
+                        help="draw the clip grounded in the world: y up over a floor grid, its path, feet in contact "
+                             "(green), one skeleton, feet pinned (as the corpus's world_joints)")
     export = sub.add_parser("export", help="export motion for animation tools (bvh)")
     export_sub = export.add_subparsers(dest="format", required=True, metavar="FORMAT")
     bvh = export_sub.add_parser(
@@ -433,7 +436,14 @@ def _render(root: Path, args: argparse.Namespace) -> int:
     meta = read_meta(args.motion)
     fps = float(meta.get("fps", 24.0))
     audio = root / AUDIO / f"{meta.get('segment_id', '')}.flac"  # the segment's normalised audio
-    render_clip(clip.joints, clip.time, fps, args.out, audio=audio, title=args.clip_id)
+    if args.world:
+        from pipeline.motion.grounding import ground_clip
+
+        grounded = ground_clip(clip.joints, clip.root, fps)
+        render_clip(grounded.joints, clip.time, fps, args.out, audio=audio, title=args.clip_id,
+                    contact=grounded.contact)
+    else:
+        render_clip(clip.joints, clip.time, fps, args.out, audio=audio, title=args.clip_id)
     print(f"wrote {args.out}")
     return 0
 

@@ -1,4 +1,6 @@
-"""Draw a 3D skeleton clip (front and side views) with the segment's audio to an mp4."""
+"""Draw a 3D skeleton clip with the segment's audio to an mp4: front and side views of the
+camera-frame pose, or (world motion) an oblique view over a floor grid and a top view, with the
+root's trail and the feet in contact marked, so travel and foot sliding show at a glance."""
 
 from __future__ import annotations
 
@@ -44,8 +46,61 @@ def draw_pose(joints: np.ndarray, size: int = 480, extent: float = 1.1) -> np.nd
     return canvas
 
 
+_GRID = np.arange(-3.0, 3.01, 0.5)
+
+
+def _oblique(points: np.ndarray, centre: np.ndarray, azimuth: float = 35.0, elevation: float = 25.0) -> np.ndarray:
+    """World points (y up) -> 2D (right, down) seen from above and to the side, orthographic."""
+    p = points - centre
+    a, e = np.radians(azimuth), np.radians(elevation)
+    x = p[..., 0] * np.cos(a) - p[..., 2] * np.sin(a)
+    depth = p[..., 0] * np.sin(a) + p[..., 2] * np.cos(a)
+    y = p[..., 1] * np.cos(e) - depth * np.sin(e)
+    return np.stack([x, -y], -1)
+
+
+def draw_world(joints: np.ndarray, contact: np.ndarray, trail: np.ndarray, centre: np.ndarray,
+               size: int = 480, extent: float = 1.6) -> np.ndarray:
+    """Two panels of world motion (y up, floor y = 0): an oblique view with the floor grid, and
+    the floor seen from above. Feet in contact are green discs; the root's recent path is the
+    orange trail."""
+    scale = size / (2 * extent)
+    floor_c = np.array([centre[0], 0.0, centre[2]])
+    views = (lambda p: _oblique(p, floor_c + [0.0, 0.9, 0.0]) * scale + size / 2,
+             lambda p: (p[..., [0, 2]] - floor_c[[0, 2]]) * scale * 0.6 + size / 2)
+    panels = []
+    for project in views:
+        panel = np.full((size, size, 3), 24, np.uint8)
+        lo, hi = _GRID[0], _GRID[-1]
+        for g in _GRID:
+            for line in (np.array([[g, 0, lo], [g, 0, hi]]), np.array([[lo, 0, g], [hi, 0, g]])):
+                a, b = project(line + [floor_c[0], 0, floor_c[2]])
+                cv2.line(panel, tuple(int(v) for v in a), tuple(int(v) for v in b), (60, 60, 60), 1, cv2.LINE_AA)
+        if len(trail) > 1:
+            path = project(trail * [1, 0, 1])
+            cv2.polylines(panel, [path.astype(np.int32)], False, (0, 170, 255), 2, cv2.LINE_AA)
+        for foot, ankle in enumerate((6, 3)):
+            if contact[foot]:
+                spot = project(joints[ankle] * [1, 0, 1])
+                cv2.circle(panel, (int(spot[0]), int(spot[1])), 8, (60, 220, 60), -1, cv2.LINE_AA)
+        pts = project(joints)
+        for a, b in H36M_BONES:
+            cv2.line(panel, tuple(int(v) for v in pts[a]), tuple(int(v) for v in pts[b]), _colour(a, b), 3,
+                     cv2.LINE_AA)
+        panels.append(panel)
+    canvas = np.concatenate(panels, axis=1)
+    cv2.line(canvas, (size, 0), (size, size), (90, 90, 90), 1)
+    cv2.putText(canvas, "world (floor grid 0.5 m)", (10, 24), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (200, 200, 200), 1,
+                cv2.LINE_AA)
+    cv2.putText(canvas, "from above: path, feet in contact", (size + 10, 24), cv2.FONT_HERSHEY_SIMPLEX, 0.6,
+                (200, 200, 200), 1, cv2.LINE_AA)
+    return canvas
+
+
 def render_clip(joints: np.ndarray, times: np.ndarray, fps: float, out: Path, *, audio: Path | None = None,
-                title: str = "") -> None:
+                title: str = "", contact: np.ndarray | None = None) -> None:
+    """Write ``out`` (H.264 mp4); ``audio`` (the segment's wav) is cut to the clip's times. With
+    ``contact`` (T x 2), ``joints`` are world motion and are drawn with ``draw_world``."""
     """Write ``out`` (H.264 mp4); ``audio`` (the segment's wav) is cut to the clip's times."""
     size = 480
     with atomic_path(out) as tmp:
@@ -58,8 +113,10 @@ def render_clip(joints: np.ndarray, times: np.ndarray, fps: float, out: Path, *,
                 "-movflags", "+faststart", "-f", "mp4", str(tmp)]
         proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stderr=subprocess.PIPE)
         try:
-            for pose, t in zip(joints, times):
-                frame = draw_pose(pose, size)
+            centre = joints[:, 0].mean(0)
+            for k, (pose, t) in enumerate(zip(joints, times)):
+                frame = draw_pose(pose, size) if contact is None else draw_world(
+                    pose, contact[k], joints[max(0, k - int(4 * fps)): k + 1, 0], centre, size)
                 label = f"{title}  {format_time(float(t))}"
                 cv2.putText(frame, label, (10, size - 12), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255), 1,
                             cv2.LINE_AA)
