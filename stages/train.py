@@ -7,7 +7,7 @@ import sys
 from dataclasses import fields
 from pathlib import Path
 
-from pipeline.core.params import load_params, stage_params
+from pipeline.core.params import load_params, stage_params, with_profile
 from pipeline.core.paths import CORPUS, METRICS
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import atomic_path
@@ -17,7 +17,7 @@ def run(root: Path) -> None:
     from pipeline.train.loop import TrainConfig, save_model, train_tsmt
     from pipeline.train.model import TSMTConfig
 
-    params = stage_params(load_params(root / "params.yaml"), "train")
+    params = with_profile(stage_params(load_params(root / "params.yaml"), "train"), "train")
     model_keys = {f.name for f in fields(TSMTConfig)}
     train_keys = {f.name for f in fields(TrainConfig)} - {"model"}
     cfg = TrainConfig(**{k: v for k, v in params.items() if k in train_keys},

@@ -161,3 +161,31 @@ def test_the_card_counts_windows_per_style() -> None:
              {"style": "", "split": "train", "video_id": "c"}]
     assert style_stats(metas) == [{"style": "hip-hop", "videos": 2, "windows_train": 2, "windows_val": 1},
                                   {"style": "(none)", "videos": 1, "windows_train": 1, "windows_val": 0}]
+
+
+def test_the_seed_profile_builds_the_seed_model_and_it_learns_causally() -> None:
+    import yaml
+
+    from pipeline.core.params import with_profile
+    from pipeline.train.model import next_frame_loss
+    from tests.conftest import PROJECT
+
+    section = yaml.safe_load((PROJECT / "params.yaml").read_text())["train"]
+    params = with_profile({**section, "profile": "seed"}, "train")
+    cfg = TSMTConfig(**params["model"])
+    model = TwoStreamMotionTransformer(cfg)
+    # 51 coordinates x D^E 5 into a 256-wide pose stream, a 64-wide audio stream, late fusion.
+    assert model.pose_in.in_features == 255 and model.coord_embedding.weight.shape == (300, 5)
+    assert model.audio_conv.out_channels == 64 and model.beat_embedding.weight.shape == (2, 30)
+    assert not hasattr(model, "fusion") and 8_000_000 < sum(p.numel() for p in model.parameters()) < 9_000_000
+    model.eval()
+    bins = torch.randint(0, 300, (1, 12, 51))
+    audio = torch.randn(1, 12, 27)
+    changed = bins.clone()
+    changed[:, 8:] = torch.randint(0, 300, (1, 4, 51))
+    assert torch.allclose(model(bins, audio)[:, :8], model(changed, audio)[:, :8], atol=1e-5)  # causal
+    model.train()
+    motion = torch.randn(2, 20, 51) * 0.3
+    loss = next_frame_loss(model, motion, torch.randn(2, 20, 27))
+    loss.backward()
+    assert torch.isfinite(loss) and model.coord_embedding.weight.grad.abs().sum() > 0
