@@ -78,6 +78,11 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
                 counts["clips_too_short"] += 1
                 continue
             grounded = ground_clip(clip.joints, clip.root, fps)
+            counts.setdefault("grounding", []).append({
+                "clip_id": clip.clip_id, "pitch_deg": round(grounded.pitch_deg, 1),
+                "roll_deg": round(grounded.roll_deg, 1), "bone_cv_before": round(grounded.cv_before, 4),
+                "contact_share": round(float(grounded.contact.mean()), 3),
+                "skate_before_m_s": round(grounded.skate_before, 4), "skate_after_m_s": round(grounded.skate_after, 4)})
             for k in starts:
                 i = k - int(clip.frame[0])
                 joints = clip.joints[i: i + window]
@@ -96,6 +101,14 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
                                       feats.onset[k: k + window], feats.beat[k: k + window], world,
                                       grounded.contact[i: i + window], grounded.rotations_6d[i: i + window]))
     return windows, counts
+
+
+def grounding_summary(clips: list[dict]) -> dict:
+    """Medians over the clips of the world grounding: camera tilt, bone-length CV before the one
+    skeleton (0 after), contact share and foot skating before and after pinning; and per clip."""
+    keys = ("pitch_deg", "roll_deg", "bone_cv_before", "contact_share", "skate_before_m_s", "skate_after_m_s")
+    medians = {k: round(float(np.nanmedian([c[k] for c in clips])), 4) if clips else float("nan") for k in keys}
+    return {"clips": len(clips), **medians, "per_clip": clips}
 
 
 def alignment_summary(windows: list[Window], fps: float, seed: int = 0) -> dict:
@@ -200,5 +213,5 @@ def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, para
                "track_minutes": total.get("track_minutes", 0.0), "windows_train": totals["windows_train"],
                "windows_val": totals["windows_val"], "clips": counts["clips"],
                "clips_without_audio": counts["clips_without_audio"], "clips_too_short": counts["clips_too_short"],
-               "beat_alignment": alignment}
+               "beat_alignment": alignment, "grounding": grounding_summary(counts.get("grounding", []))}
     write_json(root / METRICS / "corpus.json", metrics)

@@ -9,7 +9,7 @@ import numpy as np
 
 from pipeline.motion.bones import bone_length_cv, fit_skeleton
 from pipeline.motion.bvh_export import BVH_JOINTS, solve_rotations
-from pipeline.motion.contact import foot_contact, pin_feet
+from pipeline.motion.contact import foot_contact, pin_feet, skating
 from pipeline.motion.world import to_world
 
 ROTATION_JOINTS = tuple(j.name for j in BVH_JOINTS)
@@ -24,6 +24,8 @@ class GroundedClip:
     pitch_deg: float
     roll_deg: float
     cv_before: float          # largest bone-length CV before the skeleton fit
+    skate_before: float       # horizontal ankle speed in contact (m/s) before pinning (NaN: no contact)
+    skate_after: float        # ... after
 
 
 def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float) -> GroundedClip:
@@ -35,4 +37,5 @@ def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float) -> 
     motion = solve_rotations(pin_feet(fitted, contact))  # pinning bends legs: rotations of the final pose
     six = motion.local[..., :, :2].transpose(0, 1, 3, 2).reshape(len(world), len(BVH_JOINTS), 6)
     return GroundedClip(motion.joints, contact, fit_skeleton(motion.joints), six, camera.pitch_deg,
-                        camera.roll_deg, bone_length_cv(world))
+                        camera.roll_deg, bone_length_cv(world), skating(fitted, contact, fps),
+                        skating(motion.joints, contact, fps))
