@@ -105,10 +105,10 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
 
 def grounding_summary(clips: list[dict]) -> dict:
     """Medians over the clips of the world grounding: camera tilt, bone-length CV before the one
-    skeleton (0 after), contact share and foot skating before and after pinning; and per clip."""
+    skeleton (0 after), contact share and foot skating before and after pinning."""
     keys = ("pitch_deg", "roll_deg", "bone_cv_before", "contact_share", "skate_before_m_s", "skate_after_m_s")
     medians = {k: round(float(np.nanmedian([c[k] for c in clips])), 4) if clips else float("nan") for k in keys}
-    return {"clips": len(clips), **medians, "per_clip": clips}
+    return {"clips": len(clips), **medians}
 
 
 def alignment_summary(windows: list[Window], fps: float, seed: int = 0) -> dict:
