@@ -422,17 +422,24 @@ def _sample(root: Path, args: argparse.Namespace) -> int:
     return 0
 
 
+def _clip_of(motion: Path, clip_id: str):
+    """One clip of a motion file, or None after saying which clips there are."""
+    from pipeline.motion.motionfile import read_clips
+
+    clips = {c.clip_id: c for c in read_clips(motion)}
+    if clip_id not in clips:
+        print(f"dance3d: {motion}: no clip {clip_id!r}; clips: {', '.join(clips) or 'none'}", file=sys.stderr)
+    return clips.get(clip_id)
+
+
 def _render(root: Path, args: argparse.Namespace) -> int:
     from pipeline.core.paths import AUDIO
     from pipeline.core.storage import read_meta
-    from pipeline.motion.motionfile import read_clips
     from pipeline.motion.render3d import render_clip
 
-    clips = {c.clip_id: c for c in read_clips(args.motion)}
-    if args.clip_id not in clips:
-        print(f"dance3d: {args.motion}: no clip {args.clip_id!r}; clips: {', '.join(clips) or 'none'}", file=sys.stderr)
+    clip = _clip_of(args.motion, args.clip_id)
+    if clip is None:
         return 2
-    clip = clips[args.clip_id]
     meta = read_meta(args.motion)
     fps = float(meta.get("fps", 24.0))
     audio = root / AUDIO / f"{meta.get('segment_id', '')}.flac"  # the segment's normalised audio
@@ -454,14 +461,11 @@ def _export_bvh(args: argparse.Namespace) -> int:
     from pipeline.core.storage import read_meta
     from pipeline.motion.bones import bone_length_cv
     from pipeline.motion.bvh_export import solve_rotations, write_bvh
-    from pipeline.motion.motionfile import read_clips
     from pipeline.motion.world import to_world
 
-    clips = {c.clip_id: c for c in read_clips(args.motion)}
-    if args.clip_id not in clips:
-        print(f"dance3d: {args.motion}: no clip {args.clip_id!r}; clips: {', '.join(clips) or 'none'}", file=sys.stderr)
+    clip = _clip_of(args.motion, args.clip_id)
+    if clip is None:
         return 2
-    clip = clips[args.clip_id]
     joints = clip.joints.astype(np.float64)
     world, camera = to_world(joints, root=None if clip.root is None else clip.root.astype(np.float64))
     motion = solve_rotations(world)
