@@ -122,3 +122,22 @@ def test_pinned_feet_stop_sliding_and_keep_the_legs(dance: np.ndarray) -> None:
     for hip, knee, ankle in ((4, 5, 6), (1, 2, 3)):
         thigh = np.linalg.norm(pinned[:, knee] - pinned[:, hip], axis=-1)
         assert np.ptp(thigh[contact.any(1)]) < 0.02  # the leg keeps its length (bent, not stretched)
+
+
+def test_render_world_draws_the_grounded_clip(dance: np.ndarray, tmp_path: Path) -> None:
+    import cv2
+
+    from pipeline.motion.motionfile import MotionClip, write_motion
+
+    cam, _ = _pitched_view(dance[:30], 5.0)
+    clip = MotionClip("vid_000_1_0", 1, np.arange(30, dtype=np.int32), np.arange(30) / 24.0,
+                      cam.astype(np.float32), np.zeros(30, bool), np.zeros(30, np.int8))
+    motion = tmp_path / "vid_000.parquet"
+    write_motion(motion, [clip], {"segment_id": "vid_000", "fps": 24.0, "width": 1920, "height": 1080},
+                 fingerprint="x", params={}, inputs={})
+    assert main(["--root", str(tmp_path), "render", str(motion), "vid_000_1_0", str(tmp_path / "w.mp4"),
+                 "--world"]) == 0
+    video = cv2.VideoCapture(str(tmp_path / "w.mp4"))
+    ok, frame = video.read()
+    assert ok and frame.shape == (480, 960, 3) and int(video.get(cv2.CAP_PROP_FRAME_COUNT)) == 30
+    assert (np.abs(frame.astype(int) - 24).sum(-1) > 60).mean() > 0.01  # a grid and a skeleton drawn
