@@ -1,12 +1,13 @@
 """World-grounded motion on held-out motion capture through pitched cameras.
 
 Usage: python -m benchmarks.world [--mocap DIR] [--model pipeline/motion/lifting/weights/lifter_dance3d.onnx]
-                                  [--seconds 30] [--out benchmarks/results/world.json]
+                                  [--seconds 20] [--out benchmarks/results/world.json]
 
 Every held-out sequence of the lifter's protocol (pipeline/motion/lifting/evaluate.py) is filmed
 by a portrait phone 3 m away at 1.2 m, from three headings, pitched -20, -10, 0, 10 and 20
 degrees (positive: looking down), with the protocol's noisy 2D (a pose model of expected OKS
-0.80). The 2D is lifted by the lifter (flip averaging on), then:
+0.80). The 2D is lifted by the lifter (flip averaging on), the pose and the root path are
+HP-filtered as the smooth stage does (lambda 1), then:
 
 - up: the angle between the up direction estimated from the lifted body and the true one;
 - root: the root's camera-frame path from the lifted pose and the 2D (focal length assumed
@@ -34,6 +35,7 @@ from pipeline.motion.lifting.evaluate import add_pose_noise, split
 from pipeline.motion.lifting.geometry import look_at, project, to_camera
 from pipeline.motion.lifting.infer import load_lifter
 from pipeline.motion.mocap.sources import load_folder, resample
+from pipeline.motion.smoothing import hp_trend
 from pipeline.motion.trajectory import align_scale_offset, assumed_focal, root_from_2d
 from pipeline.motion.world import to_world, up_error_deg
 
@@ -64,6 +66,8 @@ def measure(lift, seq, heading: float, pitch: float, rng: np.random.Generator) -
     (rel,) = lift([xy], WIDTH, HEIGHT)
     rel = rel.astype(np.float64)
     root = root_from_2d(rel, xy, assumed_focal(WIDTH, HEIGHT), WIDTH, HEIGHT)
+    rel = hp_trend(rel.reshape(len(rel), -1), 1.0).reshape(rel.shape)  # the smooth stage
+    root = hp_trend(root, 1.0)
     true_root = joints[:, 0]
     world, camera = to_world(rel, root=root)
     lengths = fit_skeleton(world)
@@ -87,7 +91,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--mocap", type=Path, default=Path(os.environ.get("DANCE3D_MOCAP", "../shared/mocap")))
     parser.add_argument("--model", type=Path, default=Path("pipeline/motion/lifting/weights/lifter_dance3d.onnx"))
-    parser.add_argument("--seconds", type=float, default=30.0, help="at most this much of each sequence")
+    parser.add_argument("--seconds", type=float, default=20.0, help="at most this much of each sequence")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/world.json"))
     args = parser.parse_args()
     lifter = load_lifter(str(args.model), 2)
