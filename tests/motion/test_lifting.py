@@ -214,3 +214,24 @@ def test_the_shipped_lifter_says_what_made_it_and_holds_its_figures_on_held_out_
     # The figures recorded at training are the ones measured here.
     recorded = json.loads(meta["metrics"])
     assert abs(recorded["val_p_mpjpe_mm"] - clean["p_mpjpe_mm"]) < 0.5
+
+
+def test_the_train_lifter_stage_trains_a_profile_and_records_what_made_it(tmp_path: Path, mocap_dir: Path) -> None:
+    import yaml
+
+    from stages.train_lifter import run
+    from tests.conftest import PROJECT
+
+    params = yaml.safe_load((PROJECT / "params.yaml").read_text())
+    params["train_lifter"].update(shipped=False, profile="short", steps=30, channels=32, mocap=str(mocap_dir),
+                                  sources=["perfume", "dancedb_ucy"], eval_seconds=5)
+    (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
+    run(tmp_path)
+    metrics = json.loads((tmp_path / "metrics/lifter.json").read_text())
+    assert metrics["steps"] == 30 and metrics["val_p_mpjpe_mm"] > 0 and "shipped" not in metrics
+    assert set(metrics["heldout"]["sources"]) == {"perfume", "dancedb_ucy"}
+    meta = ort.InferenceSession(str(tmp_path / "models/lifter.onnx")).get_modelmeta().custom_metadata_map
+    assert meta["input_norm"] == "centred" and json.loads(meta["params"])["channels"] == 32
+    trained_on = json.loads(meta["trained_on"])
+    assert set(trained_on["train_minutes_per_source"]) == {"perfume", "dancedb_ucy"}
+    assert trained_on["heldout"] == ["perfume/kashiyuka", "dancedb_ucy/olivia"]
