@@ -235,3 +235,12 @@ def test_the_train_lifter_stage_trains_a_profile_and_records_what_made_it(tmp_pa
     trained_on = json.loads(meta["trained_on"])
     assert set(trained_on["train_minutes_per_source"]) == {"perfume", "dancedb_ucy"}
     assert trained_on["heldout"] == ["perfume/kashiyuka", "dancedb_ucy/olivia"]
+
+
+def test_training_twice_gives_the_same_lifter_bytes(mocap_dir: Path, tmp_path: Path) -> None:
+    # What lets a profile regenerate the shipped lifter: seeded data, fixed steps, no time limit.
+    cfg = LifterConfig(steps=20, channels=32, sources=("perfume", "dancedb_ucy"), eval_seconds=1)
+    train, val = split(load_mocap(mocap_dir, cfg), cfg.holdout)
+    for k in range(2):
+        export_onnx(train_lifter(cfg, train, val[:1]).model, tmp_path / f"{k}.onnx", input_norm=cfg.input_norm)
+    assert (tmp_path / "0.onnx").read_bytes() == (tmp_path / "1.onnx").read_bytes()
