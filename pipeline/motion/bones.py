@@ -11,19 +11,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.motion.mocap.skeleton import H36M_BONES
+from pipeline.motion.mocap.skeleton import H36M_BONE_PAIRS, H36M_BONES
 
 # Parent of each H36M-17 joint (-1: the root, the pelvis).
 H36M_PARENTS = (-1, 0, 1, 2, 0, 4, 5, 0, 7, 8, 9, 8, 11, 12, 8, 14, 15)
-# Bone indices (into H36M_BONES) of left / right pairs: hip, thigh, shin, shoulder, upper arm, forearm.
-_PAIRS = ((3, 0), (4, 1), (5, 2), (10, 13), (11, 14), (12, 15))
 
 
 def fit_skeleton(joints: np.ndarray) -> np.ndarray:
     """The clip's 16 bone lengths (metres, H36M_BONES order): medians, left and right averaged."""
     parents, children = np.array(H36M_BONES).T
     lengths = np.median(np.linalg.norm(joints[:, children] - joints[:, parents], axis=-1), axis=0)
-    for left, right in _PAIRS:
+    for left, right in H36M_BONE_PAIRS:
         lengths[[left, right]] = lengths[[left, right]].mean()
     return lengths
 

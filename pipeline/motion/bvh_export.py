@@ -19,7 +19,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from pipeline.motion.bones import apply_skeleton, fit_skeleton
-from pipeline.motion.mocap.skeleton import H36M_BONES
+from pipeline.motion.mocap.skeleton import H36M_BONES, smallest_rotation, unit
 
 _X, _Y = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
 
@@ -57,26 +57,12 @@ _END_SITES = {"RightFoot": (0.0, -0.05, 0.1), "LeftFoot": (0.0, -0.05, 0.1), "He
               "LeftWrist": (0.08, 0.0, 0.0), "RightWrist": (-0.08, 0.0, 0.0)}
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-9)
-
-
 def _frame(joints: np.ndarray, across: tuple[int, int], along: tuple[int, int]) -> np.ndarray:
     """T x 3 x 3 rotations whose columns are the body part's left, up and forward axes."""
-    x = _unit(joints[:, across[1]] - joints[:, across[0]])
-    up = _unit(joints[:, along[1]] - joints[:, along[0]])
-    z = _unit(np.cross(x, up))
+    x = unit(joints[:, across[1]] - joints[:, across[0]])
+    up = unit(joints[:, along[1]] - joints[:, along[0]])
+    z = unit(np.cross(x, up))
     return np.stack([x, np.cross(z, x), z], axis=-1)
-
-
-def _swing(rest: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """T x 3 x 3: the smallest rotations taking the fixed unit vector ``rest`` to each ``target``."""
-    v = np.cross(rest, target)
-    s = np.linalg.norm(v, axis=-1)
-    c = np.clip((target * rest).sum(-1), -1.0, 1.0)
-    axis = np.where(s[:, None] > 1e-9, v / np.maximum(s, 1e-12)[:, None],
-                    _unit(np.cross(rest, _Y if abs(rest[1]) < 0.9 else _X))[None])
-    return Rotation.from_rotvec(axis * np.arctan2(s, c)[:, None]).as_matrix()
 
 
 @dataclass(frozen=True)
@@ -105,9 +91,9 @@ def solve_rotations(world_joints: np.ndarray) -> SkeletonMotion:
             glob[:, i] = _frame(joints, *_FRAMES[spec.name])
         elif len(children[i]) == 1:
             child = BVH_JOINTS[children[i][0]]
-            direction = _unit(joints[:, child.h36m] - position[:, i])
+            direction = unit(joints[:, child.h36m] - position[:, i])
             in_parent = np.einsum("tji,tj->ti", parent_rot, direction)
-            glob[:, i] = parent_rot @ _swing(child.rest, in_parent)
+            glob[:, i] = parent_rot @ smallest_rotation(child.rest, in_parent)
         else:
             glob[:, i] = parent_rot
     local = glob.copy()

@@ -14,9 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-# (COCO index, H36M index) of the joints both skeletons have: shoulders, elbows, wrists, hips, knees, ankles.
-SHARED = ((5, 11), (6, 14), (7, 12), (8, 15), (9, 13), (10, 16), (11, 4), (12, 1), (13, 5), (14, 2), (15, 6),
-          (16, 3))
+from pipeline.motion.mocap.skeleton import COCO_H36M_SHARED
 
 
 def assumed_focal(width: float, height: float, equiv_mm: float = 26.0) -> float:
@@ -28,7 +26,7 @@ def root_from_2d(joints: np.ndarray, keypoints: np.ndarray, focal: float, width:
                  scores: np.ndarray | None = None) -> np.ndarray:
     """Per-frame root translation (T x 3, metres, camera frame) placing the root-relative pose
     ``joints`` (T x 17 x 3, H36M) where its COCO ``keypoints`` (T x 17 x 2, pixels) are seen."""
-    coco, h36m = (np.array(i) for i in zip(*SHARED))
+    coco, h36m = (np.array(i) for i in zip(*COCO_H36M_SHARED))
     xyz = joints[:, h36m].astype(np.float64)
     uv = keypoints[:, coco, :2].astype(np.float64) - np.array([width / 2, height / 2])
     w = np.ones(uv.shape[:2]) if scores is None else np.clip(scores[:, coco], 1e-3, None)

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pipeline.motion.mocap.skeleton import smallest_rotation, unit
+
 ANKLE_HEIGHT = 0.08   # m, ankle joint centre above the floor when the foot is flat
 # Camera frame to a level world: y down -> up, z away from the camera -> toward it (180 deg about x).
 _FLIP = np.diag([1.0, -1.0, -1.0])
@@ -28,30 +30,16 @@ class CameraEstimate:
     roll_deg: float        # > 0: the image is turned clockwise (up leans toward image right)
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-9)
-
-
 def estimate_up(joints_cam: np.ndarray) -> np.ndarray:
     """World up in camera coordinates (unit 3-vector) from a clip (T x 17 x 3, H36M)."""
     ankles = (joints_cam[:, 3] + joints_cam[:, 6]) / 2
-    axis = _unit(joints_cam[:, 8] - joints_cam[:, 0]) + _unit(joints_cam[:, 0] - ankles)
-    return _unit(np.median(_unit(axis), axis=0))
-
-
-def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The smallest rotation taking unit vector a to unit vector b (Rodrigues)."""
-    v, c = np.cross(a, b), float(np.dot(a, b))
-    if c < -1 + 1e-9:  # opposite: half a turn about any axis square to a
-        axis = _unit(np.cross(a, [1.0, 0.0, 0.0] if abs(a[0]) < 0.9 else [0.0, 0.0, 1.0]))
-        return 2 * np.outer(axis, axis) - np.eye(3)
-    k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + k + k @ k / (1 + c)
+    axis = unit(joints_cam[:, 8] - joints_cam[:, 0]) + unit(joints_cam[:, 0] - ankles)
+    return unit(np.median(unit(axis), axis=0))
 
 
 def estimate_camera(joints_cam: np.ndarray) -> CameraEstimate:
     up = estimate_up(joints_cam)
-    rotation = _rotation_between(_FLIP @ up, np.array([0.0, 1.0, 0.0])) @ _FLIP
+    rotation = smallest_rotation(_FLIP @ up, np.array([[0.0, 1.0, 0.0]]))[0] @ _FLIP
     pitch = float(np.degrees(np.arctan2(-up[2], -up[1])))
     roll = float(np.degrees(np.arctan2(up[0], -up[1])))
     return CameraEstimate(rotation, pitch, roll)
@@ -78,4 +66,4 @@ def to_world(joints_cam: np.ndarray, camera: CameraEstimate | None = None,
 def up_error_deg(camera: CameraEstimate, true_up_cam: np.ndarray) -> float:
     """Angle (degrees) between the estimated and the true up direction, both in camera coordinates."""
     estimated = camera.rotation.T @ np.array([0.0, 1.0, 0.0])
-    return float(np.degrees(np.arccos(np.clip(np.dot(estimated, _unit(true_up_cam)), -1.0, 1.0))))
+    return float(np.degrees(np.arccos(np.clip(np.dot(estimated, unit(true_up_cam)), -1.0, 1.0))))

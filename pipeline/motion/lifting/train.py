@@ -13,14 +13,11 @@ from pipeline.motion.lifting.data import AugmentOptions, PairSampler
 from pipeline.motion.lifting.evaluate import HOLDOUT, evaluate_lifter
 from pipeline.motion.lifting.infer import Lifter
 from pipeline.motion.lifting.model import TemporalModel
-from pipeline.motion.mocap.skeleton import H36M_BONES
+from pipeline.motion.mocap.skeleton import H36M_BONE_PAIRS, H36M_BONES
 from pipeline.motion.mocap.sources import SOURCES, MocapSequence, load_source, resample
 
 log = logging.getLogger(__name__)
 
-# Bone indices into H36M_BONES: thigh, shin, upper arm, forearm, hip, shoulder (left, then right).
-_LEFT_BONES = (4, 5, 11, 12, 3, 10)
-_RIGHT_BONES = (1, 2, 14, 15, 0, 13)
 
 
 @dataclass(frozen=True)
@@ -71,7 +68,8 @@ def _loss(pred: torch.Tensor, target: torch.Tensor, cfg: LifterConfig) -> torch.
         parents, children = zip(*H36M_BONES)
         bones = torch.linalg.norm(pred[:, :, list(children)] - pred[:, :, list(parents)], dim=-1)  # B x T x 16
         over_time = (bones - bones.mean(1, keepdim=True)).abs().mean()
-        left_right = (bones[..., list(_LEFT_BONES)] - bones[..., list(_RIGHT_BONES)]).abs().mean()
+        left, right = zip(*H36M_BONE_PAIRS)
+        left_right = (bones[..., list(left)] - bones[..., list(right)]).abs().mean()
         loss = loss + cfg.bone_weight * (over_time + left_right)
     return loss
 

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.core.errors import InputError
+from pipeline.motion.mocap.skeleton import unit
 
 MARKER_RADIUS = 0.007      # m, a standard 14 mm marker
 KNEE_HALF_WIDTH = 0.050    # m, half an adult knee's width (Plug-in-Gait asks for it per subject)
@@ -72,20 +73,16 @@ def read_c3d(path: Path) -> tuple[dict[str, np.ndarray], float]:
     return markers, rate
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-9)
-
-
 def _perpendicular(v: np.ndarray, axis: np.ndarray) -> np.ndarray:
     """The part of ``v`` square to ``axis`` (both T x 3, axis unit), normalised."""
-    return _unit(v - (v * axis).sum(-1, keepdims=True) * axis)
+    return unit(v - (v * axis).sum(-1, keepdims=True) * axis)
 
 
 def hip_centres(m: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """Left and right hip joint centres (Harrington 2007, metres)."""
     asis = (m["LFWT"] + m["RFWT"]) / 2
     psis = (m["LBWT"] + m["RBWT"]) / 2
-    left = _unit(m["LFWT"] - m["RFWT"])
+    left = unit(m["LFWT"] - m["RFWT"])
     forward = _perpendicular(asis - psis, left)
     up = np.cross(forward, left)
     width = np.linalg.norm(m["LFWT"] - m["RFWT"], axis=-1, keepdims=True)
@@ -98,13 +95,13 @@ def hip_centres(m: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
 
 def _leg(m: dict[str, np.ndarray], side: str, hip: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     knee_marker, ankle_marker = m[f"{side}KNE"], m[f"{side}ANK"]
-    shank = _unit(knee_marker - ankle_marker)
-    foot = _unit(m[f"{side}TOE"] - m[f"{side}HEE"])
+    shank = unit(knee_marker - ankle_marker)
+    foot = unit(m[f"{side}TOE"] - m[f"{side}HEE"])
     # shank x foot points to the body's left; medial is toward the body's midline.
     medial = np.cross(shank, foot) * (-1.0 if side == "L" else 1.0)
-    thigh = _unit(hip - knee_marker)
+    thigh = unit(hip - knee_marker)
     knee = knee_marker + (KNEE_HALF_WIDTH + MARKER_RADIUS) * _perpendicular(medial, thigh)
-    ankle = ankle_marker + (ANKLE_HALF_WIDTH + MARKER_RADIUS) * _perpendicular(medial, _unit(knee - ankle_marker))
+    ankle = ankle_marker + (ANKLE_HALF_WIDTH + MARKER_RADIUS) * _perpendicular(medial, unit(knee - ankle_marker))
     return knee, ankle
 
 
@@ -112,11 +109,11 @@ def _arm(m: dict[str, np.ndarray], side: str, up: np.ndarray) -> tuple[np.ndarra
     shoulder = m[f"{side}SHO"] - (SHOULDER_DROP + MARKER_RADIUS) * up
     wrist = (m[f"{side}WRA"] + m[f"{side}WRB"]) / 2
     elbow_marker = m[f"{side}ELB"]
-    upper, fore = _unit(elbow_marker - shoulder), _unit(wrist - elbow_marker)
+    upper, fore = unit(elbow_marker - shoulder), unit(wrist - elbow_marker)
     flexion = np.cross(upper, fore) * (1.0 if side == "L" else -1.0)  # medial for a bent elbow
     bent = np.clip((np.linalg.norm(flexion, axis=-1, keepdims=True) - 0.25) / 0.25, 0.0, 1.0)
-    bar = _unit(m[f"{side}WRB"] - m[f"{side}WRA"])  # radial (thumb) side to ulnar side: medial, palm forward
-    medial = _perpendicular(bent * _unit(flexion) + (1 - bent) * bar, upper)
+    bar = unit(m[f"{side}WRB"] - m[f"{side}WRA"])  # radial (thumb) side to ulnar side: medial, palm forward
+    medial = _perpendicular(bent * unit(flexion) + (1 - bent) * bar, upper)
     elbow = elbow_marker + (ELBOW_HALF_WIDTH + MARKER_RADIUS) * medial
     return shoulder, elbow, wrist
 
@@ -126,9 +123,9 @@ def h36m_from_markers(m: dict[str, np.ndarray]) -> np.ndarray:
     left_hip, right_hip = hip_centres(m)
     pelvis = (left_hip + right_hip) / 2
     thorax = (m["C7"] + m["CLAV"]) / 2
-    trunk_up = _unit(thorax - (m["T10"] + m["STRN"]) / 2)
+    trunk_up = unit(thorax - (m["T10"] + m["STRN"]) / 2)
     band = (m["LFHD"] + m["RFHD"] + m["LBHD"] + m["RBHD"]) / 4
-    head_up = _unit(band - thorax)
+    head_up = unit(band - thorax)
     right_knee, right_ankle = _leg(m, "R", right_hip)
     left_knee, left_ankle = _leg(m, "L", left_hip)
     left_arm = _arm(m, "L", trunk_up)

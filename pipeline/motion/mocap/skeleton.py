@@ -12,20 +12,40 @@ H36M_BONES = ((0, 1), (1, 2), (2, 3), (0, 4), (4, 5), (5, 6), (0, 7), (7, 8), (8
               (12, 13), (8, 14), (14, 15), (15, 16))
 H36M_FLIP = (0, 4, 5, 6, 1, 2, 3, 7, 8, 9, 10, 14, 15, 16, 11, 12, 13)
 COCO_FLIP = (0, 2, 1, 4, 3, 6, 5, 8, 7, 10, 9, 12, 11, 14, 13, 16, 15)
+# Left and right bones as index pairs into H36M_BONES: hip, thigh, shin, shoulder, upper arm, forearm.
+H36M_BONE_PAIRS = ((3, 0), (4, 1), (5, 2), (10, 13), (11, 14), (12, 15))
+# (COCO index, H36M index) of the body joints both skeletons have: shoulders, elbows, wrists, hips
+# (COCO's sit a little wider), knees, ankles.
+COCO_H36M_SHARED = ((5, 11), (6, 14), (7, 12), (8, 15), (9, 13), (10, 16), (11, 4), (12, 1), (13, 5), (14, 2),
+                    (15, 6), (16, 3))
 WORLD_UP = np.array([0.0, 1.0, 0.0])
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
+def unit(v: np.ndarray) -> np.ndarray:
+    """Vectors (..., 3) scaled to length 1 (a zero vector stays zero)."""
     return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-9)
+
+
+def smallest_rotation(rest: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """T x 3 x 3: the smallest rotations taking the unit vector ``rest`` to each unit ``targets[t]``
+    (half a turn about an axis square to ``rest`` when they are opposite)."""
+    from scipy.spatial.transform import Rotation
+
+    v = np.cross(rest, targets)
+    s = np.linalg.norm(v, axis=-1)
+    c = np.clip((targets * rest).sum(-1), -1.0, 1.0)
+    square = unit(np.cross(rest, [0.0, 1.0, 0.0] if abs(rest[1]) < 0.9 else [1.0, 0.0, 0.0]))
+    axis = np.where(s[:, None] > 1e-9, v / np.maximum(s, 1e-12)[:, None], square[None])
+    return Rotation.from_rotvec(axis * np.arctan2(s, c)[:, None]).as_matrix()
 
 
 def head_frame(h36m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per-frame head axes (up, forward, left) from the body: up = thorax->head joint,
     forward = horizontal facing from the hips ((left_hip - right_hip) x world up)."""
-    up = _unit(h36m[:, 9] - h36m[:, 8])
+    up = unit(h36m[:, 9] - h36m[:, 8])
     facing = np.cross(h36m[:, 4] - h36m[:, 1], WORLD_UP)
     facing[:, 1] = 0.0
-    forward = _unit(facing - (facing * up).sum(-1, keepdims=True) * up)
+    forward = unit(facing - (facing * up).sum(-1, keepdims=True) * up)
     left = np.cross(up, forward)
     return up, forward, left
 
@@ -54,8 +74,7 @@ def coco_from_h36m(h36m: np.ndarray, hip_widening: float = 1.1) -> np.ndarray:
     coco[:, 2] = c + 0.04 * s * up + 0.05 * s * forward - 0.019 * s * left
     coco[:, 3] = c + 0.02 * s * up + 0.045 * s * left
     coco[:, 4] = c + 0.02 * s * up - 0.045 * s * left
-    body = {5: 11, 6: 14, 7: 12, 8: 15, 9: 13, 10: 16, 13: 5, 14: 2, 15: 6, 16: 3}
-    for coco_i, h_i in body.items():
+    for coco_i, h_i in COCO_H36M_SHARED:
         coco[:, coco_i] = h36m[:, h_i]
     pelvis = h36m[:, 0]
     coco[:, 11] = pelvis + hip_widening * (h36m[:, 4] - pelvis)
