@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.motion.bones import bone_length_cv, fit_skeleton
+from pipeline.motion.bones import apply_skeleton, bone_length_cv, fit_skeleton
 from pipeline.motion.bvh_export import BVH_JOINTS, solve_rotations
 from pipeline.motion.contact import foot_contact, pin_feet, skating
 from pipeline.motion.world import to_world
@@ -32,7 +32,7 @@ def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float) -> 
     """Camera-frame root-relative joints (T x 17 x 3) and the root path (T x 3 or None)."""
     joints_cam = joints_cam.astype(np.float64)
     world, camera = to_world(joints_cam, root=None if root is None else root.astype(np.float64))
-    fitted = solve_rotations(world).joints
+    fitted = apply_skeleton(world, fit_skeleton(world))
     contact = foot_contact(fitted, fps)
     motion = solve_rotations(pin_feet(fitted, contact))  # pinning bends legs: rotations of the final pose
     six = motion.local[..., :, :2].transpose(0, 1, 3, 2).reshape(len(world), len(BVH_JOINTS), 6)
