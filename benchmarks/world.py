@@ -31,10 +31,9 @@ import numpy as np
 
 from pipeline.motion.bones import apply_skeleton, bone_length_cv, fit_skeleton
 from pipeline.motion.contact import foot_contact, pin_feet, skating
-from pipeline.motion.lifting.evaluate import add_pose_noise, split
-from pipeline.motion.lifting.geometry import look_at, project, to_camera
+from pipeline.motion.lifting.evaluate import Camera, add_pose_noise, camera_pose, split, view
 from pipeline.motion.lifting.infer import load_lifter
-from pipeline.motion.mocap.sources import load_folder, resample
+from pipeline.motion.mocap.sources import first_seconds, load_folder, resample
 from pipeline.motion.smoothing import hp_trend
 from pipeline.motion.trajectory import align_scale_offset, assumed_focal, root_from_2d
 from pipeline.motion.world import to_world, up_error_deg
@@ -44,24 +43,10 @@ PITCHES = (-20.0, -10.0, 0.0, 10.0, 20.0)
 HEADINGS = (0.0, 120.0, 240.0)
 
 
-def film(h36m: np.ndarray, coco: np.ndarray, heading: float, pitch: float) -> tuple:
-    """Pixels, camera-frame joints and the true up (camera coordinates) for one pitched camera."""
-    root = h36m[:, 0]
-    centre = (root.min(0) + root.max(0)) / 2
-    travel = float(np.max(np.linalg.norm((root - centre)[:, [0, 2]], axis=-1)))
-    distance = 3.0 + travel
-    yaw = np.radians(heading)
-    position = centre + distance * np.array([np.sin(yaw), 0.0, np.cos(yaw)])
-    position[1] = float(np.min(h36m[:, [3, 6], 1])) + 1.2
-    forward = np.array([-np.sin(yaw), -np.tan(np.radians(pitch)), -np.cos(yaw)])
-    rotation = look_at(position, position + forward)
-    focal = assumed_focal(WIDTH, HEIGHT)
-    joints = to_camera(h36m, rotation, position)
-    return project(to_camera(coco, rotation, position), focal, WIDTH, HEIGHT), joints, rotation @ [0.0, 1.0, 0.0]
-
-
 def measure(lift, seq, heading: float, pitch: float, rng: np.random.Generator) -> dict:
-    xy, joints, true_up = film(seq.h36m, seq.coco, heading, pitch)
+    camera = Camera(f"phone_{heading:g}_{pitch:+g}", heading, 1.2, 3.0, WIDTH, HEIGHT, pitch_deg=pitch)
+    xy, joints = view(seq.h36m, seq.coco, camera)
+    true_up = camera_pose(seq.h36m, camera)[0] @ [0.0, 1.0, 0.0]
     xy = add_pose_noise(xy, rng)
     (rel,) = lift([xy], WIDTH, HEIGHT)
     rel = rel.astype(np.float64)
@@ -100,9 +85,7 @@ def main() -> None:
     rng = np.random.default_rng(0)
     rows: dict[str, list[dict]] = {}
     for seq in held:
-        seq = resample(seq, FPS)
-        n = int(args.seconds * FPS)
-        seq = type(seq)(seq.name, seq.source, seq.fps, seq.h36m[:n], seq.coco[:n])
+        seq = first_seconds(resample(seq, FPS), args.seconds)
         for heading in HEADINGS:
             for pitch in PITCHES:
                 row = measure(lift, seq, heading, pitch, rng)

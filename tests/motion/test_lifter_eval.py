@@ -10,7 +10,6 @@ import pytest
 
 from pipeline.cli import main
 from pipeline.motion.lifting.evaluate import (
-    COCO_SIGMAS,
     HOLDOUT,
     OKS80_NOISE,
     PROTOCOL_CAMERAS,
@@ -21,6 +20,7 @@ from pipeline.motion.lifting.evaluate import (
 )
 from pipeline.motion.mocap.skeleton import coco_from_h36m
 from pipeline.motion.mocap.sources import MocapSequence, load_folder, load_source
+from pipeline.pose.tracking import COCO_SIGMAS
 
 
 def _walker(name: str = "mine/walk", frames: int = 60) -> MocapSequence:

@@ -29,7 +29,9 @@ import numpy as np
 
 from pipeline.core.errors import InputError
 from pipeline.motion.lifting.geometry import look_at, mpjpe, p_mpjpe, project, to_camera
-from pipeline.motion.mocap.sources import MocapSequence, resample
+from pipeline.motion.mocap.sources import MocapSequence, first_seconds, resample
+from pipeline.motion.trajectory import assumed_focal
+from pipeline.pose.tracking import COCO_SIGMAS
 
 # The held-out sequences of the shared motion capture (name prefixes): whole performers where
 # a source names them (Perfume's Kashiyuka, DanceDB's Olivia, the 8-year-old of AnimatedDrawings,
@@ -48,9 +50,6 @@ def split(sequences: list[MocapSequence], holdout: tuple[str, ...] = HOLDOUT) ->
     return train, val
 
 
-# COCO keypoint sigmas (pycocotools' OKS constants), per COCO-17 joint.
-COCO_SIGMAS = np.array([0.026, 0.025, 0.025, 0.035, 0.035, 0.079, 0.079, 0.072, 0.072, 0.062, 0.062,
-                        0.107, 0.107, 0.087, 0.087, 0.089, 0.089])
 # Noise of std level * k * s per axis (k = 2 sigma, s = sqrt of the keypoints' box area) gives an
 # expected OKS of 1 / (1 + level^2) per joint: 0.80 at level 0.5.
 OKS80_NOISE = 0.5
@@ -65,10 +64,11 @@ class Camera:
     width: int
     height: int
     focal_equiv_mm: float = 26.0   # 35 mm-equivalent focal length (a phone's main camera)
+    pitch_deg: float | None = None  # None: look at 1 m above the floor; else level heading, pitched (> 0: down)
 
     @property
     def focal_px(self) -> float:
-        return self.focal_equiv_mm / 43.27 * float(np.hypot(self.width, self.height))
+        return assumed_focal(self.width, self.height, self.focal_equiv_mm)
 
 
 PROTOCOL_CAMERAS = tuple(
@@ -77,10 +77,9 @@ PROTOCOL_CAMERAS = tuple(
     for setup, h, d, w, ht in (("phone", 1.2, 3.0, 1080, 1920), ("stand", 2.0, 5.0, 1920, 1080)))
 
 
-def view(seq_h36m: np.ndarray, seq_coco: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
-    """Project a sequence through ``camera``, set around the middle of the dancer's path and far
-    enough that the dancer never comes nearer than its distance: returns pixel COCO keypoints
-    (T x 17 x 2) and camera-frame H36M joints (T x 17 x 3)."""
+def camera_pose(seq_h36m: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
+    """World-to-camera rotation and position of ``camera`` for a sequence: set around the middle
+    of the dancer's path and far enough that the dancer never comes nearer than its distance."""
     root = seq_h36m[:, 0]
     centre = (root.min(0) + root.max(0)) / 2
     travel = float(np.max(np.linalg.norm((root - centre)[:, [0, 2]], axis=-1)))
@@ -88,8 +87,17 @@ def view(seq_h36m: np.ndarray, seq_coco: np.ndarray, camera: Camera) -> tuple[np
     yaw = np.radians(camera.heading_deg)
     position = centre + (camera.distance_m + travel) * np.array([np.sin(yaw), 0.0, np.cos(yaw)])
     position[1] = floor + camera.height_m
-    target = np.array([centre[0], floor + 1.0, centre[2]])
-    rotation = look_at(position, target)
+    if camera.pitch_deg is None:
+        target = np.array([centre[0], floor + 1.0, centre[2]])
+    else:
+        target = position + np.array([-np.sin(yaw), -np.tan(np.radians(camera.pitch_deg)), -np.cos(yaw)])
+    return look_at(position, target), position
+
+
+def view(seq_h36m: np.ndarray, seq_coco: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
+    """Project a sequence through ``camera`` (``camera_pose``): returns pixel COCO keypoints
+    (T x 17 x 2) and camera-frame H36M joints (T x 17 x 3)."""
+    rotation, position = camera_pose(seq_h36m, camera)
     coco_cam = to_camera(seq_coco, rotation, position)
     h36m_cam = to_camera(seq_h36m, rotation, position)
     return project(coco_cam, camera.focal_px, camera.width, camera.height), h36m_cam
@@ -116,9 +124,7 @@ def evaluate_lifter(lift: LiftFn, sequences: list[MocapSequence], *, fps: float 
                     cameras: tuple[Camera, ...] = PROTOCOL_CAMERAS, seed: int = 0) -> dict:
     """The protocol above: {"clean": {...}, "noisy": {...}, "sources": {...}, "protocol": {...}}."""
     rng = np.random.default_rng(seed)
-    sequences = [resample(s, fps) for s in sequences]
-    sequences = [type(s)(s.name, s.source, s.fps, s.h36m[: int(max_seconds * fps)], s.coco[: int(max_seconds * fps)])
-                 for s in sequences]
+    sequences = [first_seconds(resample(s, fps), max_seconds) for s in sequences]
     per: dict[str, dict[str, list]] = {}
     for camera in cameras:
         views = [view(s.h36m, s.coco, camera) for s in sequences]
@@ -148,9 +154,8 @@ def summarise(per: dict, sequences: list[MocapSequence], fps: float, max_seconds
     for condition in ("clean", "noisy"):
         result[condition] = _weighted([r for source in per.values() for r in source[condition]])
     for source, rows in sorted(per.items()):
-        names = [s.name for s in sequences if s.source == source]
-        frames = sum(len(s.h36m) for s in sequences if s.source == source)
-        result["sources"][source] = {"sequences": len(names), "seconds": round(frames / fps, 1),
+        mine = [s for s in sequences if s.source == source]
+        result["sources"][source] = {"sequences": len(mine), "seconds": round(sum(s.frames for s in mine) / fps, 1),
                                      "clean": _weighted(rows["clean"]), "noisy": _weighted(rows["noisy"])}
     result["protocol"] = {"sequences": len(sequences), "seconds": round(sum(len(s.h36m) for s in sequences) / fps, 1),
                           "fps": fps, "max_seconds_per_sequence": max_seconds,

@@ -223,6 +223,12 @@ def load_folder(folder: Path) -> list[MocapSequence]:
     return sequences
 
 
+def first_seconds(seq: MocapSequence, seconds: float) -> MocapSequence:
+    """The sequence's first ``seconds`` (all of it when shorter)."""
+    n = int(seconds * seq.fps)
+    return MocapSequence(seq.name, seq.source, seq.fps, seq.h36m[:n], seq.coco[:n])
+
+
 def resample(seq: MocapSequence, fps: float) -> MocapSequence:
     """Linear resampling to ``fps`` (mocap rates are 16-120 Hz; the lifter sees video rates)."""
     if abs(seq.fps - fps) < 1e-6:
