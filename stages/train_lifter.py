@@ -70,33 +70,6 @@ def use_shipped(root: Path, shipped: Path = SHIPPED) -> None:
              "re-measure with dance3d eval lifter)", shipped.name, metrics["val_mpjpe_mm"], metrics["val_p_mpjpe_mm"])
 
 
-def provenance(cfg, train: list, val: list, result, mocap: Path) -> dict:
-    """What made a lifter, for its ONNX metadata: data, params, code, figures."""
-    import dataclasses
-    import subprocess
-
-    from pipeline.core.storage import code_fingerprint
-    from pipeline.motion.lifting import data, evaluate, model
-    from pipeline.motion.lifting import train as train_module
-    from pipeline.motion.mocap import markers, sources
-
-    minutes: dict[str, float] = {}
-    for seq in train:
-        minutes[seq.source] = round(minutes.get(seq.source, 0.0) + seq.frames / seq.fps / 60, 2)
-    try:
-        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
-                                text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        commit = "unknown"
-    curve = result.losses[:: max(1, len(result.losses) // 200)]
-    return {"trained_on": json.dumps({"mocap": mocap.name, "train_minutes_per_source": minutes,
-                                      "train_sequences": len(train), "heldout": [s.name for s in val]}),
-            "params": json.dumps(dataclasses.asdict(cfg)), "git_commit": commit,
-            "code_fingerprint": code_fingerprint(model, data, train_module, evaluate, sources, markers),
-            "steps": len(result.losses), "metrics": json.dumps(result.metrics),
-            "loss_curve_mm": ",".join(f"{1000 * x:.2f}" for x in curve)}
-
-
 def run(root: Path) -> None:
     section = stage_params(load_params(root / "params.yaml"), "train_lifter")
     params = with_profile(section, "train_lifter")
@@ -104,7 +77,7 @@ def run(root: Path) -> None:
         use_shipped(root)
         return
     from pipeline.motion.lifting.evaluate import split
-    from pipeline.motion.lifting.train import export_onnx, load_mocap, train_lifter
+    from pipeline.motion.lifting.train import export_onnx, load_mocap, provenance, train_lifter
 
     cfg = config_from_params(params)
     mocap = mocap_root(root, params)

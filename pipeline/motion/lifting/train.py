@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import logging
 import time
 from dataclasses import dataclass, field
@@ -126,6 +127,34 @@ def evaluate(model: TemporalModel, val: list[MocapSequence], cfg: LifterConfig) 
     return {"val_mpjpe_mm": clean["mpjpe_mm"], "val_p_mpjpe_mm": clean["p_mpjpe_mm"],
             "mean_pose_mpjpe_mm": clean["mean_pose_mpjpe_mm"], "noisy_mpjpe_mm": result["noisy"]["mpjpe_mm"],
             "noisy_p_mpjpe_mm": result["noisy"]["p_mpjpe_mm"], "heldout": result}
+
+
+def provenance(cfg: LifterConfig, train: list[MocapSequence], val: list[MocapSequence], result: TrainResult,
+               mocap: Path) -> dict:
+    """What made a lifter, for its ONNX metadata: data, params, code, figures."""
+    import dataclasses
+    import subprocess
+    import sys
+
+    from pipeline.core.storage import code_fingerprint
+    from pipeline.motion.lifting import data, evaluate, model
+    from pipeline.motion.mocap import markers, sources
+
+    minutes: dict[str, float] = {}
+    for seq in train:
+        minutes[seq.source] = round(minutes.get(seq.source, 0.0) + seq.frames / seq.fps / 60, 2)
+    try:
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
+                                text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        commit = "unknown"
+    curve = result.losses[:: max(1, len(result.losses) // 200)]
+    return {"trained_on": json.dumps({"mocap": mocap.name, "train_minutes_per_source": minutes,
+                                      "train_sequences": len(train), "heldout": [s.name for s in val]}),
+            "params": json.dumps(dataclasses.asdict(cfg)), "git_commit": commit,
+            "code_fingerprint": code_fingerprint(model, data, sys.modules[__name__], evaluate, sources, markers),
+            "steps": len(result.losses), "metrics": json.dumps(result.metrics),
+            "loss_curve_mm": ",".join(f"{1000 * x:.2f}" for x in curve)}
 
 
 def export_onnx(model: TemporalModel, path: Path, extra: dict | None = None, input_norm: str = "screen") -> None:
