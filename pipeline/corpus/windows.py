@@ -96,9 +96,9 @@ def windows_table(windows: list[Window], window: int) -> pa.Table:
     schema = corpus_schema(window)
     tensors = ("motion", "mfcc", "chroma", "onset", "beat", "world_joints", "root", "contact", "rotations_6d",
                "bone_lengths")
-    scalars = {name: [w.meta.get(name, WORLD_DEFAULTS.get(name, BEAT_DEFAULTS.get(name)))
-                      if name in BEAT_DEFAULTS or name in WORLD_DEFAULTS else w.meta[name]
-                      for w in windows] for name in schema.names if name not in tensors}
+    defaults = {**BEAT_DEFAULTS, **WORLD_DEFAULTS}
+    scalars = {name: [w.meta.get(name, defaults[name]) if name in defaults else w.meta[name] for w in windows]
+               for name in schema.names if name not in tensors}
     n = len(windows)
 
     def stack(attr: str, shape: tuple) -> np.ndarray:
