@@ -28,6 +28,11 @@ def _colour(a: int, b: int) -> tuple[int, int, int]:
     return (230, 230, 230)
 
 
+def _draw_bones(image: np.ndarray, pts: np.ndarray) -> None:
+    for a, b in H36M_BONES:
+        cv2.line(image, tuple(int(v) for v in pts[a]), tuple(int(v) for v in pts[b]), _colour(a, b), 3, cv2.LINE_AA)
+
+
 def draw_pose(joints: np.ndarray, size: int = 480, extent: float = 1.1) -> np.ndarray:
     """Two panels: front (camera x, y) and side (camera z, y), root-relative metres, y down."""
     canvas = np.full((size, 2 * size, 3), 24, np.uint8)
@@ -35,9 +40,7 @@ def draw_pose(joints: np.ndarray, size: int = 480, extent: float = 1.1) -> np.nd
     views = ((0, 1, 0), (2, 1, size))  # (horizontal axis, vertical axis, panel x offset)
     for h_axis, v_axis, offset in views:
         pts = np.stack([joints[:, h_axis] * scale + size / 2 + offset, joints[:, v_axis] * scale + size / 2], -1)
-        for a, b in H36M_BONES:
-            cv2.line(canvas, tuple(int(v) for v in pts[a]), tuple(int(v) for v in pts[b]), _colour(a, b), 3,
-                     cv2.LINE_AA)
+        _draw_bones(canvas, pts)
         for p in pts:
             cv2.circle(canvas, (int(p[0]), int(p[1])), 4, (255, 255, 255), -1, cv2.LINE_AA)
     cv2.line(canvas, (size, 0), (size, size), (90, 90, 90), 1)
@@ -84,9 +87,7 @@ def draw_world(joints: np.ndarray, contact: np.ndarray, trail: np.ndarray, centr
                 spot = project(joints[ankle] * [1, 0, 1])
                 cv2.circle(panel, (int(spot[0]), int(spot[1])), 8, (60, 220, 60), -1, cv2.LINE_AA)
         pts = project(joints)
-        for a, b in H36M_BONES:
-            cv2.line(panel, tuple(int(v) for v in pts[a]), tuple(int(v) for v in pts[b]), _colour(a, b), 3,
-                     cv2.LINE_AA)
+        _draw_bones(panel, pts)
         panels.append(panel)
     canvas = np.concatenate(panels, axis=1)
     cv2.line(canvas, (size, 0), (size, size), (90, 90, 90), 1)
