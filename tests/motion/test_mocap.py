@@ -133,3 +133,56 @@ def test_an_unreadable_c3d_names_the_file(tmp_path: Path) -> None:
     bad.write_bytes(b"not a c3d file at all" * 40)
     with pytest.raises(InputError, match=r"take\.c3d: cannot read the C3D file"):
         read_c3d(bad)
+
+
+@pytest.mark.parametrize("source", SOURCES)
+def test_every_source_has_heels_behind_the_ankles_and_toe_tips_ahead(sequences: dict, source: str) -> None:
+    for seq in sequences[source]:
+        assert seq.feet.shape == (seq.frames, 4, 3) and np.isfinite(seq.feet).all()
+        for ankle, heel, toe in ((6, 0, 2), (3, 1, 3)):  # left, right (skeleton.FEET order)
+            a, h, t = seq.h36m[:, ankle], seq.feet[:, heel], seq.feet[:, toe]
+            foot = np.linalg.norm(t - h, axis=-1)
+            along = ((a - h) * (t - h)).sum(-1) / foot ** 2  # the ankle's place along heel -> toe
+            size = 0.6 if "5yr_old" in seq.name or "8yr_old" in seq.name else 1.0
+            assert 0.15 * size < np.median(foot) < 0.33, (seq.name, np.median(foot))
+            assert 0.0 < np.median(along) < 0.6, (seq.name, np.median(along))
+        # Feet reach the floor: the lowest heel and toe are near the lowest point of the body.
+        if not any(a in seq.name for a in ACROBATICS):
+            low = np.percentile(seq.feet[..., 1], 2)
+            assert np.percentile(seq.feet[:, :, 1], 5, axis=0).max() - low < 0.1, seq.name
+
+
+def test_a_foot_placed_from_its_ball_stands_flat_like_the_template() -> None:
+    from pipeline.motion.mocap.skeleton import FOOT_TEMPLATE, foot_points
+
+    size = 1.7
+    ankle = np.array([[0.0, 0.039 * size, 0.0]])
+    knee = ankle + [0.0, 0.45, 0.0]
+    ball = ankle + np.array([FOOT_TEMPLATE["ball"][0], FOOT_TEMPLATE["ball"][1], 0.0]) * size
+    points = foot_points(knee, ankle, ball, "ball", size)
+    for name in ("heel", "tip"):
+        x, y = FOOT_TEMPLATE[name]
+        np.testing.assert_allclose(points[name][0], ankle[0] + np.array([x, y, 0.0]) * size, atol=1e-9)
+    # A foot pointed 40 degrees further (the shank still upright): heel and tip turn with it.
+    c, s = np.cos(np.radians(-40)), np.sin(np.radians(-40))
+    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    pointed = foot_points(knee, ankle, ankle + (ball - ankle) @ turn.T, "ball", size)
+    for name in ("heel", "tip"):
+        np.testing.assert_allclose(pointed[name] - ankle, (points[name] - ankle) @ turn.T, atol=1e-9)
+    # With the floor known, toes that would pass below the sole bend up at the ball instead.
+    on_ball = foot_points(knee, ankle, ankle + (ball - ankle) @ turn.T, "ball", size, floor=pointed["ball"][0, 1])
+    assert on_ball["tip"][0, 1] >= pointed["ball"][0, 1] - 1e-9
+    np.testing.assert_allclose(np.linalg.norm(on_ball["tip"] - on_ball["ball"]),
+                               np.linalg.norm(pointed["tip"] - pointed["ball"]))
+
+
+def test_a_joint_file_may_carry_feet_and_says_when_they_do_not_fit(tmp_path: Path, sequences: dict) -> None:
+    from pipeline.core.errors import InputError
+    from pipeline.motion.mocap.sources import load_joints_npz
+
+    seq = sequences["perfume"][0]
+    np.savez(tmp_path / "take.npz", joints=seq.h36m[:50], fps=seq.fps, feet=seq.feet[:50])
+    np.testing.assert_allclose(load_joints_npz(tmp_path / "take.npz").feet, seq.feet[:50])
+    np.savez(tmp_path / "short.npz", joints=seq.h36m[:50], fps=seq.fps, feet=seq.feet[:40])
+    with pytest.raises(InputError, match=r"short\.npz: 'feet' must be finite, 50 x 4 x 3"):
+        load_joints_npz(tmp_path / "short.npz")

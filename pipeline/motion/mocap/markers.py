@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.core.errors import InputError
-from pipeline.motion.mocap.skeleton import unit
+from pipeline.motion.mocap.skeleton import feet_array, floor_height, foot_points, leg_stature, unit
 
 MARKER_RADIUS = 0.007      # m, a standard 14 mm marker
 KNEE_HALF_WIDTH = 0.050    # m, half an adult knee's width (Plug-in-Gait asks for it per subject)
@@ -135,6 +135,11 @@ def h36m_from_markers(m: dict[str, np.ndarray]) -> np.ndarray:
                      *left_arm, *right_arm], axis=1)
 
 
-def feet_from_markers(m: dict[str, np.ndarray]) -> np.ndarray:
-    """T x 4 x 3: left heel, left toe, right heel, right toe (the markers themselves)."""
-    return np.stack([m["LHEE"], m["LTOE"], m["RHEE"], m["RTOE"]], axis=1)
+def feet_from_markers(m: dict[str, np.ndarray], h36m: np.ndarray) -> np.ndarray:
+    """T x 4 x 3 in ``skeleton.FEET`` order: the heel markers, and toe tips placed beyond the toe
+    markers (which sit over the second metatarsal head, the ball of the foot) by the foot template."""
+    size = leg_stature(h36m)
+    floor = floor_height(np.stack([m["LHEE"], m["RHEE"], m["LTOE"], m["RTOE"]]))
+    tips = [foot_points(h36m[:, knee], h36m[:, ankle], m[f"{side}TOE"], "ball", size, floor)["tip"]
+            for side, knee, ankle in (("L", 5, 6), ("R", 2, 3))]
+    return feet_array((m["LHEE"], m["RHEE"]), tips)

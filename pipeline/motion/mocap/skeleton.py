@@ -20,6 +20,21 @@ COCO_H36M_SHARED = ((5, 11), (6, 14), (7, 12), (8, 15), (9, 13), (10, 16), (11, 
                     (15, 6), (16, 3))
 WORLD_UP = np.array([0.0, 1.0, 0.0])
 
+# The feet, appended after the 17 body joints in 2D (COCO-17 + 4) and 3D (H36M-17 + 4), in the
+# 2D stage's order (pipeline.pose.models.pose.FEET). The toe is the tip of the toes, BlazePose's
+# "foot index".
+FEET = ("left_heel", "right_heel", "left_toe", "right_toe")
+FEET_FLIP = (1, 0, 3, 2)
+H36M21 = H36M17 + FEET
+COCO21_FLIP = COCO_FLIP + tuple(17 + i for i in FEET_FLIP)
+H36M21_FLIP = H36M_FLIP + tuple(17 + i for i in FEET_FLIP)
+# A standing adult's foot in the sagittal plane, ankle centre at the origin, x forward, y up, in
+# shares of stature (Drillis & Contini's segment proportions: ankle height 0.039, foot length 0.152;
+# the ankle a quarter of the foot from the heel, the ball at 72 % of it). Sole points sit 4 mm above
+# the floor, as skin markers and a pose model's heel do.
+FOOT_TEMPLATE = {"ankle": (0.0, 0.0), "heel": (-0.038, -0.037), "ball": (0.071, -0.037), "tip": (0.114, -0.037)}
+FOOT_TEMPLATE_FLOOR = -0.039
+
 
 def unit(v: np.ndarray) -> np.ndarray:
     """Vectors (..., 3) scaled to length 1 (a zero vector stays zero)."""
@@ -56,10 +71,55 @@ def stature(h36m: np.ndarray) -> float:
     return float(np.median(np.linalg.norm(h36m[:, 9] - ankles, axis=-1)) * 1.08)
 
 
+def leg_stature(h36m: np.ndarray) -> float:
+    """Standing height estimate (m) from the legs: thigh + shank is 0.491 of stature (Drillis &
+    Contini), median over frames and sides. Unlike ``stature`` it needs no head joint convention."""
+    legs = [np.linalg.norm(h36m[:, hip] - h36m[:, knee], axis=-1) + np.linalg.norm(h36m[:, knee] - h36m[:, ankle],
+                                                                                     axis=-1)
+            for hip, knee, ankle in ((1, 2, 3), (4, 5, 6))]
+    return float(np.median(np.concatenate(legs)) / 0.491)
+
+
 def head_top(h36m: np.ndarray, height_share: float = 0.10) -> np.ndarray:
     """Head top when the rig has none: head joint + share x stature along the head's up axis."""
     up, _, _ = head_frame(h36m)
     return h36m[:, 9] + height_share * stature(h36m) * up
+
+
+def foot_points(knee: np.ndarray, ankle: np.ndarray, point: np.ndarray, kind: str, stature_m: float,
+                floor: float | None = None) -> dict[str, np.ndarray]:
+    """Heel, ball and toe tip (each T x 3) of a foot known by its ankle and one point of the
+    front of the foot (``kind``: "ball" or "tip"), from ``FOOT_TEMPLATE``: the template is
+    turned in the plane of the shank and the foot until its ``kind`` point lies on the ankle ->
+    ``point`` line, and scaled by stature. The toes go on in line with the foot, except that
+    with a ``floor`` height they bend up rather than pass below the sole (a foot on its ball)."""
+    forward = unit(point - ankle)
+    up = unit((knee - ankle) - ((knee - ankle) * forward).sum(-1, keepdims=True) * forward)
+    anchor = np.arctan2(FOOT_TEMPLATE[kind][1], FOOT_TEMPLATE[kind][0])
+    out = {}
+    for name, (x, y) in FOOT_TEMPLATE.items():
+        if name == "ankle":
+            continue
+        angle, radius = np.arctan2(y, x) - anchor, np.hypot(x, y) * stature_m
+        out[name] = ankle + radius * (np.cos(angle) * forward + np.sin(angle) * up)
+    if floor is not None:
+        sole = floor + (FOOT_TEMPLATE["tip"][1] - FOOT_TEMPLATE_FLOOR) * stature_m
+        ball, toes = out["ball"], out["tip"] - out["ball"]
+        length = np.linalg.norm(toes, axis=-1, keepdims=True)
+        drop = np.clip(ball[:, 1:2] - sole, 0.0, length)
+        bent = ball + unit(toes * [1.0, 0.0, 1.0]) * np.sqrt(length ** 2 - drop ** 2) - drop * [0.0, 1.0, 0.0]
+        out["tip"] = np.where(out["tip"][:, 1:2] < sole, bent, out["tip"])
+    return out
+
+
+def floor_height(points: np.ndarray) -> float:
+    """A capture's floor: the 2nd percentile of the heights of ``points`` (..., 3), its lowest foot points."""
+    return float(np.percentile(points[..., 1], 2))
+
+
+def feet_array(heels: tuple[np.ndarray, np.ndarray], tips: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """T x 4 x 3 in ``FEET`` order from (left, right) heels and (left, right) toe tips."""
+    return np.stack([heels[0], heels[1], tips[0], tips[1]], axis=1)
 
 
 def coco_from_h36m(h36m: np.ndarray, hip_widening: float = 1.1) -> np.ndarray:
