@@ -5,7 +5,9 @@ joints (H36M-17 x (x, y, z), metres, root-relative, camera frame: x right, y dow
 z away from the camera), interpolated (the 2D pose of that frame was filled in by clean),
 filled_joints (how many 2D joints were filled because their confidence was low), root (the
 root's position in the camera frame, metres, from the pose and its 2D keypoints with a
-focal length assumed from the frame size: pipeline/motion/trajectory.py; schema 2).
+focal length assumed from the frame size: pipeline/motion/trajectory.py; schema 2), feet
+(left heel, right heel, left toe tip, right toe tip x (x, y, z), root-relative like joints;
+NaN when the lifter has no feet; schema 3).
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import pyarrow.parquet as pq
 
 from pipeline.core.storage import column_array, fixed_list, read_meta, write_parquet
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 MOTION_SCHEMA = pa.schema(
     [
         ("clip_id", pa.string()),
@@ -31,6 +33,7 @@ MOTION_SCHEMA = pa.schema(
         ("interpolated", pa.bool_()),
         ("filled_joints", pa.int8()),
         ("root", pa.list_(pa.float32(), 3)),
+        ("feet", pa.list_(pa.float32(), 12)),
     ]
 )
 
@@ -45,6 +48,7 @@ class MotionClip:
     interpolated: np.ndarray  # n bool
     filled_joints: np.ndarray  # n int
     root: np.ndarray | None = None  # n x 3 root path, camera frame, metres (None: not known)
+    feet: np.ndarray | None = None  # n x 4 x 3 heels and toe tips, like joints (None: the lifter has none)
 
 
 def clips_to_table(clips: list[MotionClip]) -> pa.Table:
@@ -63,6 +67,8 @@ def clips_to_table(clips: list[MotionClip]) -> pa.Table:
         pa.array(cat("interpolated"), pa.bool_()),
         pa.array(cat("filled_joints"), pa.int8()),
         fixed_list(np.concatenate([c.root if c.root is not None else np.full((len(c.frame), 3), np.nan)
+                                   for c in clips])),
+        fixed_list(np.concatenate([c.feet.reshape(-1, 12) if c.feet is not None else np.full((len(c.frame), 12), np.nan)
                                    for c in clips])),
     ], schema=MOTION_SCHEMA)
 
@@ -107,10 +113,12 @@ def read_clips(path: Path) -> list[MotionClip]:
     interp = column_array(table, "interpolated")
     filled = column_array(table, "filled_joints")
     root = column_array(table, "root", (3,)) if "root" in table.column_names else None
+    feet = column_array(table, "feet", (4, 3)) if "feet" in table.column_names else None
     clips = []
     for clip_id in dict.fromkeys(ids):  # file order
         rows = np.flatnonzero(ids == clip_id)
         path = None if root is None or np.isnan(root[rows]).all() else root[rows]
+        heels_toes = None if feet is None or np.isnan(feet[rows]).all() else feet[rows]
         clips.append(MotionClip(clip_id, int(track[rows[0]]), frame[rows], time[rows], joints[rows],
-                                interp[rows], filled[rows], path))
+                                interp[rows], filled[rows], path, heels_toes))
     return clips

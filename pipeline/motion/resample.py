@@ -60,8 +60,9 @@ def resample_segment(job: ResampleJob) -> dict:
             continue
         near = np.clip(np.searchsorted(clip.time, frames / job.fps), 0, len(clip.time) - 1)
         root = None if clip.root is None else resample_cubic(clip.time, clip.root, job.fps)[1].astype(np.float32)
+        feet = None if clip.feet is None else resample_cubic(clip.time, clip.feet, job.fps)[1].astype(np.float32)
         clips.append(MotionClip(clip.clip_id, clip.track_id, frames, frames / job.fps, joints.astype(np.float32),
-                                clip.interpolated[near], clip.filled_joints[near], root))
+                                clip.interpolated[near], clip.filled_joints[near], root, feet))
     segment = {"fps": job.fps, "source_fps": motion.meta.get("fps"),
                **{k: motion.meta.get(k) for k in ("segment_id", "width", "height")}}
     write_motion(job.out, clips, segment, fingerprint=job.fingerprint, params=job.params, inputs=job.inputs)

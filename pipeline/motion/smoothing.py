@@ -102,7 +102,9 @@ def smooth_segment(job: SmoothJob) -> dict:
     for clip in motion.clips:
         trend = hp_trend(clip.joints.reshape(len(clip.joints), -1), job.lamb).reshape(clip.joints.shape)
         root = None if clip.root is None else hp_trend(clip.root.astype(np.float64), job.lamb).astype(np.float32)
-        clips.append(replace(clip, joints=trend.astype(np.float32), root=root))
+        feet = None if clip.feet is None else hp_trend(clip.feet.reshape(len(clip.feet), -1).astype(np.float64),
+                                                      job.lamb).reshape(clip.feet.shape).astype(np.float32)
+        clips.append(replace(clip, joints=trend.astype(np.float32), root=root, feet=feet))
         qc[clip.clip_id] = {
             "frames": int(len(clip.frame)),
             "mean_acc_before": round(mean_acceleration(clip.joints, motion.fps), 3),

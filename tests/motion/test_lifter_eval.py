@@ -84,6 +84,26 @@ def test_a_lifter_that_answers_zeros_scores_the_distance_of_joints_from_the_root
     assert set(result["sources"]) == {"mine"} and result["protocol"]["sequences"] == 1
 
 
+def test_the_feet_are_scored_apart_from_the_body() -> None:
+    walker = _walker()
+    ankles = walker.h36m[:, [6, 3, 6, 3]]
+    feet = ankles + np.array([[-0.06, -0.08, 0], [-0.06, -0.08, 0], [0.0, -0.08, 0.18], [0.0, -0.08, 0.18]])
+    seq = MocapSequence(walker.name, walker.source, walker.fps, walker.h36m, walker.coco, feet)
+
+    def zeros(clips, width, height):
+        assert clips[0].shape[1] == 21  # the heels and toes come after the 17 keypoints
+        return [np.zeros((len(c), 21, 3)) for c in clips]
+
+    result = evaluate_lifter(zeros, [seq], cameras=PROTOCOL_CAMERAS[:1], feet=True)
+    _, joints = view(np.concatenate([seq.h36m, feet], 1), np.concatenate([seq.coco, feet], 1), PROTOCOL_CAMERAS[0])
+    rel = joints - joints[:, :1]
+    assert result["clean"]["mpjpe_mm"] == pytest.approx(np.linalg.norm(rel[:, :17], axis=-1).mean() * 1000, abs=0.1)
+    assert result["clean"]["feet_mpjpe_mm"] == pytest.approx(np.linalg.norm(rel[:, 17:], axis=-1).mean() * 1000,
+                                                             abs=0.1)
+    assert "feet_mpjpe_mm" not in evaluate_lifter(lambda c, w, h: [np.zeros((len(x), 17, 3)) for x in c], [seq],
+                                                  cameras=PROTOCOL_CAMERAS[:1])["clean"]
+
+
 def test_eval_lifter_scores_an_onnx_lifter_on_a_folder_of_joint_files(tmp_path: Path, capsys) -> None:
     torch = pytest.importorskip("torch")
     from pipeline.motion.lifting.model import TemporalModel

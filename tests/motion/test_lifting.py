@@ -183,6 +183,38 @@ def test_the_exported_lifter_lifts_as_the_torch_model_does(tmp_path: Path) -> No
     assert np.abs(a - b).max() < 1e-4
 
 
+def test_a_lifter_with_feet_takes_and_returns_heels_and_toes_and_mirrors_them(tmp_path: Path) -> None:
+    from pipeline.motion.mocap.skeleton import COCO21_FLIP, H36M21_FLIP
+
+    torch.manual_seed(0)
+    export_onnx(TemporalModel(21, 21, (3, 3), 32).eval(), tmp_path / "feet.onnx", input_norm="centred")
+    session = ort.InferenceSession(str(tmp_path / "feet.onnx"))
+    meta = session.get_modelmeta().custom_metadata_map
+    assert (meta["joints_in"], meta["joints_out"]) == ("coco17+feet", "h36m17+feet")
+    lifter = Lifter.from_session(session)
+    assert lifter.feet
+    clip = np.random.default_rng(2).uniform(200, 900, (30, 21, 2))
+    (out,) = lifter.lift([clip], 1080, 1920, flip=True)
+    assert out.shape == (30, 21, 3)
+    # Mirroring the image mirrors the body, the heels and the toes: left becomes right.
+    mirrored = np.stack([1080 - clip[..., 0], clip[..., 1]], -1)[:, list(COCO21_FLIP)]
+    (back,) = lifter.lift([mirrored], 1080, 1920, flip=True)
+    np.testing.assert_allclose((back * [-1, 1, 1])[:, list(H36M21_FLIP)], out, atol=1e-5)
+
+
+def test_feet_a_pose_model_never_saw_stand_at_the_ankles() -> None:
+    from pipeline.motion.lifting.infer import with_feet
+
+    keypoints = np.random.default_rng(0).uniform(0, 500, (10, 17, 3))
+    feet = np.zeros((10, 4, 3))
+    feet[:, 1] = [300.0, 400.0, 0.9]  # only the right heel was seen
+    both = with_feet(keypoints, feet)
+    assert both.shape == (10, 21, 3)
+    np.testing.assert_array_equal(both[:, 18], feet[:, 1])
+    np.testing.assert_array_equal(both[:, [17, 19, 20], :2], keypoints[:, [15, 15, 16], :2])
+    assert (both[:, [17, 19, 20], 2] == 0).all()
+
+
 def test_the_train_lifter_stage_uses_the_shipped_lifter_by_default(tmp_path: Path) -> None:
     from stages.train_lifter import SHIPPED, run
     from tests.conftest import PROJECT
@@ -244,3 +276,15 @@ def test_training_twice_gives_the_same_lifter_bytes(mocap_dir: Path, tmp_path: P
     for k in range(2):
         export_onnx(train_lifter(cfg, train, val[:1]).model, tmp_path / f"{k}.onnx", input_norm=cfg.input_norm)
     assert (tmp_path / "0.onnx").read_bytes() == (tmp_path / "1.onnx").read_bytes()
+
+
+def test_a_lifter_trains_with_feet_and_scores_them_apart_from_the_body(mocap_dir: Path) -> None:
+    cfg = LifterConfig(steps=20, channels=32, sources=("perfume", "dancedb_ucy"), eval_seconds=2, feet=True)
+    train, val = split(load_mocap(mocap_dir, cfg), cfg.holdout)
+    result = train_lifter(cfg, train, val[:1])
+    assert result.model.joints_in == result.model.joints_out == 21
+    # The body on its 17 joints (comparable with any lifter); the heels and toes on their own, beside
+    # the mean pose's (how well a full training does: the shipped lifter's test).
+    assert {"val_mpjpe_mm", "val_feet_mpjpe_mm", "noisy_feet_mpjpe_mm", "mean_pose_feet_mpjpe_mm"} <= set(
+        result.metrics)
+    assert "feet_mpjpe_mm" in result.metrics["heldout"]["sources"]["perfume"]["clean"]

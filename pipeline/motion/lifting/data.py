@@ -7,6 +7,7 @@ at the dancer, project the COCO-17 keypoints into a random image size with a ran
 focal length, then jitter joints, drop some (a dropped joint is carried over from the
 previous frame, as the lift stage's gap filling does) and swap a left/right pair for a
 few frames. The target is the H36M-17 pose in camera coordinates, root-relative, metres.
+With ``feet``, the heels and toe tips follow the 17 joints in both (``skeleton.FEET``).
 """
 
 from __future__ import annotations
@@ -17,11 +18,12 @@ import numpy as np
 
 from pipeline.motion.lifting.evaluate import add_pose_noise
 from pipeline.motion.lifting.geometry import look_at, normalise, project, to_camera
-from pipeline.motion.mocap.skeleton import COCO_FLIP, H36M_FLIP
-from pipeline.motion.mocap.sources import MocapSequence
+from pipeline.motion.mocap.skeleton import COCO21_FLIP, COCO_FLIP, H36M21_FLIP, H36M_FLIP
+from pipeline.motion.mocap.sources import MocapSequence, keypoints_and_joints
 
 IMAGE_SIZES = ((1280, 720), (720, 1280), (1920, 1080), (1080, 1920), (640, 480), (768, 576), (384, 496), (640, 360))
 LR_PAIRS = ((5, 6), (7, 8), (9, 10), (11, 12), (13, 14), (15, 16))
+FEET_LR_PAIRS = ((17, 18), (19, 20))
 
 
 @dataclass(frozen=True)
@@ -40,33 +42,37 @@ class AugmentOptions:
     swap: float = 0.02                             # probability per window of a left/right pair swapped for a while
 
 
-def _window(seq: MocapSequence, length: int, speed: float, start: float) -> tuple[np.ndarray, np.ndarray]:
+def _window(sources: tuple[np.ndarray, np.ndarray], length: int, speed: float,
+            start: float) -> tuple[np.ndarray, np.ndarray]:
     """``length`` frames from ``start`` (in source frames) stepping ``speed`` frames, linear interpolation."""
+    frames = len(sources[0])
     idx = start + np.arange(length) * speed
-    idx = np.clip(idx, 0, seq.frames - 1)
+    idx = np.clip(idx, 0, frames - 1)
     lo = np.floor(idx).astype(int)
-    hi = np.minimum(lo + 1, seq.frames - 1)
+    hi = np.minimum(lo + 1, frames - 1)
     w = (idx - lo)[:, None, None]
-    return seq.coco[lo] * (1 - w) + seq.coco[hi] * w, seq.h36m[lo] * (1 - w) + seq.h36m[hi] * w
+    coco, h36m = sources
+    return coco[lo] * (1 - w) + coco[hi] * w, h36m[lo] * (1 - w) + h36m[hi] * w
 
 
 def make_pair(seq: MocapSequence, length: int, rng: np.random.Generator, opts: AugmentOptions,
-              augment: bool = True, input_norm: str = "screen", window: int = 27) -> tuple[np.ndarray, np.ndarray]:
-    """One (2D input (length x 17 x 2), 3D target (length x 17 x 3)) pair; ``window`` is the
-    receptive field (the centred normalisation's scale filter)."""
+              augment: bool = True, input_norm: str = "screen", window: int = 27,
+              feet: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """One (2D input (length x 17 x 2), 3D target (length x 17 x 3)) pair (21 joints each with
+    ``feet``); ``window`` is the receptive field (the centred normalisation's scale filter)."""
     speed = rng.uniform(*opts.speed) if augment else 1.0
     span = (length - 1) * speed
     start = rng.uniform(0, max(0.0, seq.frames - 1 - span))
-    coco, h36m = _window(seq, length, speed, start)
+    coco, h36m = _window(keypoints_and_joints(seq, feet), length, speed, start)
     centre = h36m[:, 0].mean(0)
     scale = rng.uniform(*opts.scale) if augment else 1.0
     coco = (coco - centre) * scale + centre
     h36m = (h36m - centre) * scale + centre
     if augment and rng.random() < opts.mirror:
         flip = np.array([-1.0, 1.0, 1.0])
-        coco = ((coco - centre) * flip + centre)[:, list(COCO_FLIP)]
-        h36m = ((h36m - centre) * flip + centre)[:, list(H36M_FLIP)]
-    body = np.ptp(h36m[:, :, 1]) if np.ptp(h36m[:, :, 1]) > 0.3 else 1.6
+        coco = ((coco - centre) * flip + centre)[:, list(COCO21_FLIP if feet else COCO_FLIP)]
+        h36m = ((h36m - centre) * flip + centre)[:, list(H36M21_FLIP if feet else H36M_FLIP)]
+    body = np.ptp(h36m[:, :17, 1]) if np.ptp(h36m[:, :17, 1]) > 0.3 else 1.6
     for attempt in range(20):
         width, height = IMAGE_SIZES[rng.integers(len(IMAGE_SIZES))]
         yaw = rng.uniform(0, 2 * np.pi)
@@ -90,7 +96,8 @@ def make_pair(seq: MocapSequence, length: int, rng: np.random.Generator, opts: A
         if opts.pose_noise[1] > 0:
             xy = add_pose_noise(xy, rng, rng.uniform(*opts.pose_noise), drop=0.0)
         if rng.random() < opts.swap:
-            a, b = LR_PAIRS[rng.integers(len(LR_PAIRS))]
+            pairs = LR_PAIRS + FEET_LR_PAIRS if feet else LR_PAIRS
+            a, b = pairs[rng.integers(len(pairs))]
             t0 = rng.integers(length)
             t1 = min(length, t0 + rng.integers(1, 8))
             xy[t0:t1, [a, b]] = xy[t0:t1, [b, a]]
@@ -106,8 +113,9 @@ class PairSampler:
     """Random training windows, sequences drawn in proportion to their length."""
 
     def __init__(self, sequences: list[MocapSequence], length: int, opts: AugmentOptions, seed: int,
-                 input_norm: str = "screen", window: int = 27) -> None:
+                 input_norm: str = "screen", window: int = 27, feet: bool = False) -> None:
         self.sequences = [s for s in sequences if s.frames >= 2]
+        self.feet = feet
         weights = np.array([s.frames for s in self.sequences], float)
         self.p = weights / weights.sum()
         self.length, self.opts = length, opts
@@ -117,5 +125,5 @@ class PairSampler:
     def batch(self, size: int) -> tuple[np.ndarray, np.ndarray]:
         picks = self.rng.choice(len(self.sequences), size=size, p=self.p)
         pairs = [make_pair(self.sequences[i], self.length, self.rng, self.opts, input_norm=self.input_norm,
-                           window=self.window) for i in picks]
+                           window=self.window, feet=self.feet) for i in picks]
         return np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs])

@@ -16,7 +16,10 @@ Protocol (``dance3d eval lifter`` and the train_lifter stage's metrics):
 - MPJPE (mm, root-relative, camera frame) and P-MPJPE (after a per-frame similarity
   alignment), per source and over all frames; every source and camera weighs by its frames;
 - baseline: the mean pose, i.e. the evaluated set's own mean root-relative pose in each
-  camera (an oracle: it knows the test set's average), for scale.
+  camera (an oracle: it knows the test set's average), for scale;
+- a lifter with feet gets the heels and toe tips too, noisy with the sigma of COCO-WholeBody's
+  foot points; MPJPE and P-MPJPE stay on the 17 body joints (comparable with any lifter) and
+  the feet get their own root-relative error beside the mean pose's.
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ import numpy as np
 
 from pipeline.core.errors import InputError
 from pipeline.motion.lifting.geometry import look_at, mpjpe, p_mpjpe, project, to_camera
-from pipeline.motion.mocap.sources import MocapSequence, first_seconds, resample
+from pipeline.motion.mocap.sources import MocapSequence, first_seconds, keypoints_and_joints, resample
 from pipeline.motion.trajectory import assumed_focal
 from pipeline.pose.tracking import COCO_SIGMAS
 
@@ -53,6 +56,8 @@ def split(sequences: list[MocapSequence], holdout: tuple[str, ...] = HOLDOUT) ->
 # Noise of std level * k * s per axis (k = 2 sigma, s = sqrt of the keypoints' box area) gives an
 # expected OKS of 1 / (1 + level^2) per joint: 0.80 at level 0.5.
 OKS80_NOISE = 0.5
+# COCO-17's sigmas, then the feet's: COCO-WholeBody gives its heels and big toes 0.066-0.094; 0.08 for all four.
+KEYPOINT_SIGMAS = np.concatenate([COCO_SIGMAS, np.full(4, 0.08)])
 
 
 @dataclass(frozen=True)
@@ -96,7 +101,7 @@ def camera_pose(seq_h36m: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.nd
 
 def view(seq_h36m: np.ndarray, seq_coco: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
     """Project a sequence through ``camera`` (``camera_pose``): returns pixel COCO keypoints
-    (T x 17 x 2) and camera-frame H36M joints (T x 17 x 3)."""
+    (T x 17 x 2) and camera-frame H36M joints (T x 17 x 3); 21 each with the feet after them."""
     rotation, position = camera_pose(seq_h36m, camera)
     coco_cam = to_camera(seq_coco, rotation, position)
     h36m_cam = to_camera(seq_h36m, rotation, position)
@@ -107,9 +112,10 @@ def add_pose_noise(xy: np.ndarray, rng: np.random.Generator, level: float = OKS8
                    drop: float = 0.02) -> np.ndarray:
     """Per-joint noise of a pose model (std level * 2 sigma_j * s, s the person's box size per
     frame) and missing joints carried over from the previous frame."""
-    span = xy.max(1) - xy.min(1)
+    span = xy[:, :17].max(1) - xy[:, :17].min(1)
     size = np.sqrt(np.maximum(span[:, 0] * span[:, 1], 1.0))[:, None, None]
-    noisy = xy + rng.normal(0.0, 1.0, xy.shape) * level * 2 * COCO_SIGMAS[None, :, None] * size
+    sigmas = KEYPOINT_SIGMAS[: xy.shape[1]]
+    noisy = xy + rng.normal(0.0, 1.0, xy.shape) * level * 2 * sigmas[None, :, None] * size
     dropped = rng.random(xy.shape[:2]) < drop
     for t in range(1, len(noisy)):
         noisy[t, dropped[t]] = noisy[t - 1, dropped[t]]
@@ -121,13 +127,14 @@ LiftFn = Callable[[list[np.ndarray], int, int], list[np.ndarray]]
 
 
 def evaluate_lifter(lift: LiftFn, sequences: list[MocapSequence], *, fps: float = 25.0, max_seconds: float = 60.0,
-                    cameras: tuple[Camera, ...] = PROTOCOL_CAMERAS, seed: int = 0) -> dict:
-    """The protocol above: {"clean": {...}, "noisy": {...}, "sources": {...}, "protocol": {...}}."""
+                    cameras: tuple[Camera, ...] = PROTOCOL_CAMERAS, seed: int = 0, feet: bool = False) -> dict:
+    """The protocol above: {"clean": {...}, "noisy": {...}, "sources": {...}, "protocol": {...}};
+    ``feet``: the lifter takes and returns the heels and toe tips after the 17 joints."""
     rng = np.random.default_rng(seed)
     sequences = [first_seconds(resample(s, fps), max_seconds) for s in sequences]
     per: dict[str, dict[str, list]] = {}
     for camera in cameras:
-        views = [view(s.h36m, s.coco, camera) for s in sequences]
+        views = [view(*keypoints_and_joints(s, feet)[::-1], camera) for s in sequences]
         targets = [h - h[:, :1] for _, h in views]
         mean_pose = np.concatenate(targets).mean(0)
         for condition in ("clean", "noisy"):
@@ -135,16 +142,20 @@ def evaluate_lifter(lift: LiftFn, sequences: list[MocapSequence], *, fps: float 
             preds = lift(inputs, camera.width, camera.height)
             for seq, pred, target in zip(sequences, preds, targets):
                 bucket = per.setdefault(seq.source, {}).setdefault(condition, [])
-                bucket.append((len(target), mpjpe(pred, target), p_mpjpe(pred, target),
-                               mpjpe(np.broadcast_to(mean_pose, target.shape), target),
-                               p_mpjpe(np.broadcast_to(mean_pose, target.shape), target)))
+                mean = np.broadcast_to(mean_pose, target.shape)
+                row = [len(target), mpjpe(pred[:, :17], target[:, :17]), p_mpjpe(pred[:, :17], target[:, :17]),
+                       mpjpe(mean[:, :17], target[:, :17]), p_mpjpe(mean[:, :17], target[:, :17])]
+                if feet:
+                    row += [mpjpe(pred[:, 17:], target[:, 17:]), mpjpe(mean[:, 17:], target[:, 17:])]
+                bucket.append(tuple(row))
     return summarise(per, sequences, fps, max_seconds, cameras)
 
 
 def _weighted(rows: list[tuple]) -> dict:
     arr = np.array(rows, dtype=np.float64)
     w = arr[:, 0] / arr[:, 0].sum()
-    keys = ("mpjpe_mm", "p_mpjpe_mm", "mean_pose_mpjpe_mm", "mean_pose_p_mpjpe_mm")
+    keys = ("mpjpe_mm", "p_mpjpe_mm", "mean_pose_mpjpe_mm", "mean_pose_p_mpjpe_mm", "feet_mpjpe_mm",
+            "mean_pose_feet_mpjpe_mm")[: arr.shape[1] - 1]
     return {k: round(1000 * float((arr[:, i + 1] * w).sum()), 1) for i, k in enumerate(keys)}
 
 
@@ -181,7 +192,14 @@ def evaluate_onnx(model: Path, mocap: Path, *, heldout_only: bool = True, flip: 
     if held:
         sequences = held
     lifter = load_lifter(str(model), threads)
-    result = evaluate_lifter(partial(lifter.lift, flip=flip), sequences, max_seconds=max_seconds)
+    if lifter.feet:
+        lacking = [s.name for s in sequences if s.feet is None]
+        if lacking:
+            raise InputError(Path(mocap) / lacking[0].split("/")[-1],
+                             f"{len(lacking)} sequences have no heels and toes, which lifter {model} takes "
+                             "(add 'feet' to a joint-position .npz)")
+    result = evaluate_lifter(partial(lifter.lift, flip=flip), sequences, max_seconds=max_seconds,
+                             feet=lifter.feet)
     result["protocol"].update(model=str(model), mocap=str(mocap), flip=flip,
                               split="held-out sequences of the train_lifter split" if held else "every sequence")
     return result
@@ -194,9 +212,15 @@ def format_report(result: dict) -> str:
     rows = [(name, r) for name, r in result["sources"].items()]
     rows.append(("all", {"sequences": result["protocol"]["sequences"], "seconds": result["protocol"]["seconds"],
                          "clean": result["clean"], "noisy": result["noisy"]}))
+    feet = "feet_mpjpe_mm" in result["clean"]
+    if feet:
+        lines[0] += f" | feet {'clean':>6s} {'noisy':>6s} {'mean':>6s}"
     for name, r in rows:
         c, n = r["clean"], r["noisy"]
         lines.append(f"{name:28s} {r['sequences']:4d} {r['seconds']:6.0f} | {c['mpjpe_mm']:6.1f} "
                      f"{c['p_mpjpe_mm']:7.1f} |       {n['mpjpe_mm']:6.1f} {n['p_mpjpe_mm']:7.1f} |           "
                      f"{c['mean_pose_mpjpe_mm']:6.1f} {c['mean_pose_p_mpjpe_mm']:7.1f}")
+        if feet:
+            lines[-1] += (f" |      {c['feet_mpjpe_mm']:6.1f} {n['feet_mpjpe_mm']:6.1f} "
+                          f"{c['mean_pose_feet_mpjpe_mm']:6.1f}")
     return "\n".join(lines)

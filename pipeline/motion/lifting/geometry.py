@@ -11,14 +11,15 @@ def normalise_screen(xy: np.ndarray, width: float, height: float) -> np.ndarray:
 
 
 def normalise_centred(xy: np.ndarray, window: int) -> np.ndarray:
-    """Keypoints (T x 17 x 2, COCO) about the hips' midpoint, divided by the body's size in the
+    """Keypoints (T x 17 x 2, COCO, or 21 with the feet) about the hips' midpoint, divided by the body's size in the
     image: the root-mean-square distance of the keypoints from their centre, median-filtered
     over ``window`` frames (the receptive field), so the scale follows a dancer who comes nearer
     but not a pose that opens its arms. Camera, framing and person size no longer reach the model."""
     from scipy.ndimage import median_filter
 
     centre = (xy[:, 11] + xy[:, 12]) / 2
-    spread = np.sqrt(((xy - xy.mean(1, keepdims=True)) ** 2).sum(-1).mean(-1))
+    body = xy[:, :17]  # the body's size, with or without the feet after it
+    spread = np.sqrt(((body - body.mean(1, keepdims=True)) ** 2).sum(-1).mean(-1))
     size = median_filter(spread, size=max(1, min(window, len(spread))), mode="nearest")
     return (xy - centre[:, None]) / np.maximum(size, 1e-6)[:, None, None]
 

@@ -9,7 +9,11 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.motion.lifting.geometry import normalise
-from pipeline.motion.mocap.skeleton import COCO_FLIP, H36M_FLIP
+from pipeline.motion.mocap.skeleton import COCO21_FLIP, COCO_FLIP, H36M21_FLIP, H36M_FLIP
+
+# ONNX metadata values of the joint sets (export_onnx writes them)
+JOINTS_IN = {False: "coco17", True: "coco17+feet"}
+JOINTS_OUT = {False: "h36m17", True: "h36m17+feet"}
 
 
 def fill_low_confidence(keypoints: np.ndarray, min_score: float) -> tuple[np.ndarray, np.ndarray]:
@@ -36,10 +40,11 @@ class Lifter:
     training (``from_torch``); both lift clips the same way."""
 
     def __init__(self, forward: Callable[[np.ndarray], np.ndarray], receptive_field: int,
-                 input_norm: str = "screen") -> None:
-        self.forward = forward            # (1, T, 17, 2) float32 -> (1, T - rf + 1, 17, 3)
+                 input_norm: str = "screen", feet: bool = False) -> None:
+        self.forward = forward            # (1, T, J, 2) float32 -> (1, T - rf + 1, J, 3); J = 17, or 21 with feet
         self.receptive_field = receptive_field
         self.input_norm = input_norm      # how 2D keypoints are normalised (geometry.normalise)
+        self.feet = feet                  # takes and returns heels and toe tips after the 17 joints
 
     @classmethod
     def from_session(cls, session) -> Lifter:
@@ -50,7 +55,7 @@ class Lifter:
         name = session.get_inputs()[0].name
         # Lifters exported before the centred normalisation, and converted official weights, are "screen".
         return cls(lambda x: session.run(None, {name: x})[0], int(meta["receptive_field"]),
-                   meta.get("input_norm", "screen"))
+                   meta.get("input_norm", "screen"), meta.get("joints_in", "coco17") == JOINTS_IN[True])
 
     @classmethod
     def from_torch(cls, model, input_norm: str = "screen") -> Lifter:
@@ -61,7 +66,7 @@ class Lifter:
             with torch.no_grad():
                 return model(torch.from_numpy(x)).numpy()
 
-        return cls(forward, model.receptive_field, input_norm)
+        return cls(forward, model.receptive_field, input_norm, model.joints_in == 21)
 
     def _run(self, sequences: list[np.ndarray]) -> list[np.ndarray]:
         """Lift several normalised clips (T_i x 17 x 2) in one call: each is edge-padded by
@@ -76,17 +81,30 @@ class Lifter:
         return results
 
     def lift(self, clips: list[np.ndarray], width: int, height: int, *, flip: bool = False) -> list[np.ndarray]:
-        """2D pixel clips (T_i x 17 x 2, COCO) -> 3D clips (T_i x 17 x 3, H36M, root-relative metres)."""
+        """2D pixel clips (T_i x 17 x 2, COCO) -> 3D clips (T_i x 17 x 3, H36M, root-relative metres);
+        21 joints in and out for a lifter with feet (heels and toe tips after the body)."""
         if not clips:
             return []
         norm = [normalise(c, width, height, self.input_norm, self.receptive_field) for c in clips]
         outputs = self._run(norm)
         if flip:
-            mirrored = [(n * np.array([-1.0, 1.0]))[:, list(COCO_FLIP)] for n in norm]
-            back = [(o * np.array([-1.0, 1.0, 1.0]))[:, list(H36M_FLIP)] for o in self._run(mirrored)]
+            flip_in, flip_out = (COCO21_FLIP, H36M21_FLIP) if self.feet else (COCO_FLIP, H36M_FLIP)
+            mirrored = [(n * np.array([-1.0, 1.0]))[:, list(flip_in)] for n in norm]
+            back = [(o * np.array([-1.0, 1.0, 1.0]))[:, list(flip_out)] for o in self._run(mirrored)]
             outputs = [(a + b) / 2 for a, b in zip(outputs, back)]
         # Training targets have the root at 0, but the network only learns to come close.
         return [(o - o[:, :1]).astype(np.float32) for o in outputs]
+
+
+def with_feet(keypoints: np.ndarray, feet: np.ndarray) -> np.ndarray:
+    """COCO-17 keypoints and the heels and toes after them (T x 21 x 3, x, y, score). A foot point
+    the pose model never saw in the clip (a model without feet gives score 0) stands at its
+    ankle, scored 0: the lifter gets a foot of no length rather than the image's corner."""
+    feet = feet.astype(np.float64).copy()
+    for k, ankle in enumerate((15, 16, 15, 16)):  # left heel, right heel, left toe, right toe
+        if not (feet[:, k, 2] > 0).any():
+            feet[:, k, :2], feet[:, k, 2] = keypoints[:, ankle, :2], 0.0
+    return np.concatenate([keypoints.astype(np.float64), feet], 1)
 
 
 # --- the lift stage's worker -------------------------------------------------------------
@@ -117,13 +135,16 @@ def lift_segment(lifter: Lifter, job: LiftJob) -> dict:
 
     clean = read_clean(job.clean)
     width, height = clean.segment.width, clean.segment.height
-    filled = [fill_low_confidence(c.keypoints, job.min_score) for c in clean.clips]
+    inputs = [with_feet(c.keypoints, c.feet) if lifter.feet else c.keypoints for c in clean.clips]
+    filled = [fill_low_confidence(k, job.min_score) for k in inputs]
     lifted = lifter.lift([f[0] for f in filled], width, height, flip=job.flip)
     focal = assumed_focal(width, height)
-    roots = [root_from_2d(joints, f[0], focal, width, height, scores=c.keypoints[..., 2]).astype(np.float32)
+    roots = [root_from_2d(joints[:, :17], f[0][:, :17], focal, width, height,
+                          scores=c.keypoints[..., 2]).astype(np.float32)
              for c, joints, f in zip(clean.clips, lifted, filled)]
-    clips = [MotionClip(c.clip_id, c.track_id, c.frame.astype(np.int32), clean.time(c), joints, c.interpolated,
-                        f[1].sum(1).astype(np.int8), root)
+    clips = [MotionClip(c.clip_id, c.track_id, c.frame.astype(np.int32), clean.time(c), joints[:, :17],
+                        c.interpolated, f[1][:, :17].sum(1).astype(np.int8), root,
+                        joints[:, 17:] if lifter.feet else None)
              for c, joints, f, root in zip(clean.clips, lifted, filled, roots)]
     segment = {"segment_id": clean.segment.segment_id, "fps": clean.segment.fps, "width": clean.segment.width,
                "height": clean.segment.height}

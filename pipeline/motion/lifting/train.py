@@ -12,7 +12,7 @@ import torch
 
 from pipeline.motion.lifting.data import AugmentOptions, PairSampler
 from pipeline.motion.lifting.evaluate import HOLDOUT, evaluate_lifter
-from pipeline.motion.lifting.infer import Lifter
+from pipeline.motion.lifting.infer import JOINTS_IN, JOINTS_OUT, Lifter
 from pipeline.motion.lifting.model import TemporalModel
 from pipeline.motion.mocap.skeleton import H36M_BONE_PAIRS, H36M_BONES
 from pipeline.motion.mocap.sources import SOURCES, MocapSequence, load_source, resample
@@ -38,6 +38,7 @@ class LifterConfig:
     velocity_weight: float = 0.0   # weight of the velocity error (MPJVE) in the loss
     bone_weight: float = 0.0       # weight of bone-length consistency (over time, left vs right) in the loss
     input_norm: str = "centred"    # screen: VideoPose3D's; centred: about the hips, by the body's size (geometry.py)
+    feet: bool = False             # also take and return the heels and toe tips (21 joints in and out)
     sources: tuple[str, ...] = SOURCES
     # Held out by performer where a source names them, else by take (see README, "3D lifting").
     holdout: tuple[str, ...] = HOLDOUT
@@ -78,11 +79,12 @@ def _loss(pred: torch.Tensor, target: torch.Tensor, cfg: LifterConfig) -> torch.
 def train_lifter(cfg: LifterConfig, train: list[MocapSequence], val: list[MocapSequence]) -> TrainResult:
     torch.manual_seed(cfg.seed)
     torch.set_num_threads(max(1, cfg.threads))
-    model = TemporalModel(17, 17, cfg.filter_widths, cfg.channels, cfg.dropout)
+    joints = 21 if cfg.feet else 17
+    model = TemporalModel(joints, joints, cfg.filter_widths, cfg.channels, cfg.dropout)
     rf = model.receptive_field
     pad = rf // 2
     length = rf + cfg.chunk - 1
-    sampler = PairSampler(train, length, cfg.augment, cfg.seed, cfg.input_norm, rf)
+    sampler = PairSampler(train, length, cfg.augment, cfg.seed, cfg.input_norm, rf, cfg.feet)
     optimiser = torch.optim.Adam(model.parameters(), lr=cfg.lr, amsgrad=True)
     gamma = (cfg.lr_final / cfg.lr) ** (1.0 / max(1, cfg.steps))
     scheduler = torch.optim.lr_scheduler.ExponentialLR(optimiser, gamma)
@@ -122,11 +124,15 @@ def evaluate(model: TemporalModel, val: list[MocapSequence], cfg: LifterConfig) 
 
     lifter = Lifter.from_torch(model, cfg.input_norm)
     result = evaluate_lifter(partial(lifter.lift, flip=True), val, fps=cfg.fps, max_seconds=cfg.eval_seconds,
-                             seed=cfg.seed + 1)
+                             seed=cfg.seed + 1, feet=cfg.feet)
     clean = result["clean"]
-    return {"val_mpjpe_mm": clean["mpjpe_mm"], "val_p_mpjpe_mm": clean["p_mpjpe_mm"],
-            "mean_pose_mpjpe_mm": clean["mean_pose_mpjpe_mm"], "noisy_mpjpe_mm": result["noisy"]["mpjpe_mm"],
-            "noisy_p_mpjpe_mm": result["noisy"]["p_mpjpe_mm"], "heldout": result}
+    figures = {"val_mpjpe_mm": clean["mpjpe_mm"], "val_p_mpjpe_mm": clean["p_mpjpe_mm"],
+               "mean_pose_mpjpe_mm": clean["mean_pose_mpjpe_mm"], "noisy_mpjpe_mm": result["noisy"]["mpjpe_mm"],
+               "noisy_p_mpjpe_mm": result["noisy"]["p_mpjpe_mm"]}
+    if cfg.feet:
+        figures.update(val_feet_mpjpe_mm=clean["feet_mpjpe_mm"], noisy_feet_mpjpe_mm=result["noisy"]["feet_mpjpe_mm"],
+                       mean_pose_feet_mpjpe_mm=clean["mean_pose_feet_mpjpe_mm"])
+    return {**figures, "heldout": result}
 
 
 def provenance(cfg: LifterConfig, train: list[MocapSequence], val: list[MocapSequence], result: TrainResult,
@@ -171,7 +177,8 @@ def export_onnx(model: TemporalModel, path: Path, extra: dict | None = None, inp
                           opset_version=17, dynamo=False)
         proto = onnx.load(str(tmp))
         meta = {"receptive_field": model.receptive_field, "filter_widths": ",".join(map(str, model.filter_widths)),
-                "joints_in": "coco17", "joints_out": "h36m17", "units": "metres, root-relative, camera frame",
+                "joints_in": JOINTS_IN[model.joints_in == 21], "joints_out": JOINTS_OUT[model.joints_out == 21],
+                "units": "metres, root-relative, camera frame",
                 "input_norm": input_norm,
                 **(extra or {})}
         for key, value in meta.items():
