@@ -433,6 +433,8 @@ def _clip_of(motion: Path, clip_id: str):
 
 
 def _render(root: Path, args: argparse.Namespace) -> int:
+    import numpy as np
+
     from pipeline.core.paths import AUDIO
     from pipeline.core.storage import read_meta
     from pipeline.motion.render3d import render_clip
@@ -446,11 +448,12 @@ def _render(root: Path, args: argparse.Namespace) -> int:
     if args.world:
         from pipeline.motion.grounding import ground_clip
 
-        grounded = ground_clip(clip.joints, clip.root, fps)
-        render_clip(grounded.joints, clip.time, fps, args.out, audio=audio, title=args.clip_id,
-                    contact=grounded.contact)
+        grounded = ground_clip(clip.joints, clip.root, fps, clip.feet)
+        world = grounded.joints if grounded.feet is None else np.concatenate([grounded.joints, grounded.feet], 1)
+        render_clip(world, clip.time, fps, args.out, audio=audio, title=args.clip_id, contact=grounded.contact)
     else:
-        render_clip(clip.joints, clip.time, fps, args.out, audio=audio, title=args.clip_id)
+        joints = clip.joints if clip.feet is None else np.concatenate([clip.joints, clip.feet], 1)
+        render_clip(joints, clip.time, fps, args.out, audio=audio, title=args.clip_id)
     print(f"wrote {args.out}")
     return 0
 

@@ -4,17 +4,20 @@ A foot is in contact when its ankle is near the floor and barely moves horizonta
 is the horizontal ankle speed while in contact (a planted foot does not slide). ``pin_feet``
 holds each contact's foot where it landed, bending the leg with two-bone inverse kinematics
 (thigh and shin keep their lengths; the knee stays in its own bending plane), easing in and
-out over a few frames. The lifter has no heels or toes yet, so contact is judged at the ankle.
+out over a few frames. With heels and toe tips (a lifter with feet) contact is judged at the
+foot's lower point, heel or toe, so a foot on its ball or its heel stands too; the feet ride
+on their ankles when legs are bent. Skating stays measured at the ankles (comparable either way).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from pipeline.motion.world import ANKLE_HEIGHT
+from pipeline.motion.world import ANKLE_HEIGHT, FOOT_POINT_HEIGHT
 
 ANKLES = (6, 3)                      # H36M left ankle, right ankle
 LEGS = ((4, 5, 6), (1, 2, 3))        # hip, knee, ankle: left, right
+FOOT_POINTS = ((0, 2), (1, 3))       # heel, toe tip (in skeleton.FEET): left, right
 
 
 def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
@@ -29,12 +32,21 @@ def horizontal_speed(world: np.ndarray, fps: float) -> np.ndarray:
 
 
 def foot_contact(world: np.ndarray, fps: float, height: float = 0.10, speed: float = 0.3,
-                 min_frames: int = 3) -> np.ndarray:
+                 min_frames: int = 3, feet: np.ndarray | None = None, feet_height: float = 0.05) -> np.ndarray:
     """T x 2 contact flags (left, right): ankle within ``height`` m of its resting height (10 cm:
     a dancer on the ball of the foot is still standing) and moving slower than ``speed`` m/s
-    horizontally, for at least ``min_frames`` frames."""
-    low = world[:, list(ANKLES), 1] < ANKLE_HEIGHT + height
-    contact = low & (horizontal_speed(world, fps) < speed)
+    horizontally, for at least ``min_frames`` frames. With ``feet`` (T x 4 x 3 world heels and
+    toe tips): the foot's lower point within ``feet_height`` of its resting height, and slow."""
+    if feet is None:
+        low = world[:, list(ANKLES), 1] < ANKLE_HEIGHT + height
+        moving = horizontal_speed(world, fps)
+    else:
+        pick = np.stack([feet[:, list(points)] for points in FOOT_POINTS], 1)  # T x 2 sides x 2 points x 3
+        lower = np.argmin(pick[..., 1], axis=-1)
+        point = np.take_along_axis(pick, lower[..., None, None], axis=2)[:, :, 0]  # T x 2 x 3
+        low = point[..., 1] < FOOT_POINT_HEIGHT + feet_height
+        moving = np.linalg.norm(np.gradient(point[..., [0, 2]], axis=0), axis=-1) * fps
+    contact = low & (moving < speed)
     for foot in range(2):
         for a, b in _runs(contact[:, foot]):
             if b - a < min_frames:
@@ -82,4 +94,12 @@ def pin_feet(world: np.ndarray, contact: np.ndarray, ease: int = 3) -> np.ndarra
         if moved.any():
             new_knee, new_ankle = _two_bone(world[moved, hip], world[moved, knee], goal[moved], thigh, shin)
             out[moved, knee], out[moved, ankle] = new_knee, new_ankle
+    return out
+
+
+def carry_feet(feet: np.ndarray, before: np.ndarray, after: np.ndarray) -> np.ndarray:
+    """Heels and toes (T x 4 x 3) moved with their ankles from the joints ``before`` to ``after``."""
+    out = feet.copy()
+    for side, points in enumerate(FOOT_POINTS):
+        out[:, list(points)] += (after[:, ANKLES[side]] - before[:, ANKLES[side]])[:, None]
     return out

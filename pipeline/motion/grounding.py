@@ -9,7 +9,7 @@ import numpy as np
 
 from pipeline.motion.bones import apply_skeleton, bone_length_cv, fit_skeleton
 from pipeline.motion.bvh_export import BVH_JOINTS, solve_rotations
-from pipeline.motion.contact import foot_contact, pin_feet, skating
+from pipeline.motion.contact import carry_feet, foot_contact, pin_feet, skating
 from pipeline.motion.world import to_world
 
 ROTATION_JOINTS = tuple(j.name for j in BVH_JOINTS)
@@ -26,16 +26,24 @@ class GroundedClip:
     cv_before: float          # largest bone-length CV before the skeleton fit
     skate_before: float       # horizontal ankle speed in contact (m/s) before pinning (NaN: no contact)
     skate_after: float        # ... after
+    feet: np.ndarray | None = None  # T x 4 x 3 world heels and toe tips riding on the ankles (None: no feet)
 
 
-def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float) -> GroundedClip:
-    """Camera-frame root-relative joints (T x 17 x 3) and the root path (T x 3 or None)."""
+def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float,
+                feet_cam: np.ndarray | None = None) -> GroundedClip:
+    """Camera-frame root-relative joints (T x 17 x 3), the root path (T x 3 or None) and the
+    heels and toe tips (T x 4 x 3, like the joints, or None)."""
     joints_cam = joints_cam.astype(np.float64)
-    world, camera = to_world(joints_cam, root=None if root is None else root.astype(np.float64))
+    if feet_cam is not None:
+        joints_cam = np.concatenate([joints_cam, feet_cam.astype(np.float64)], 1)
+    everything, camera = to_world(joints_cam, root=None if root is None else root.astype(np.float64))
+    world = everything[:, :17]
     fitted = apply_skeleton(world, fit_skeleton(world))
-    contact = foot_contact(fitted, fps)
+    feet = None if feet_cam is None else carry_feet(everything[:, 17:], world, fitted)
+    contact = foot_contact(fitted, fps, feet=feet)
     motion = solve_rotations(pin_feet(fitted, contact))  # pinning bends legs: rotations of the final pose
     six = motion.local[..., :, :2].transpose(0, 1, 3, 2).reshape(len(world), len(BVH_JOINTS), 6)
     return GroundedClip(motion.joints, contact, fit_skeleton(motion.joints), six, camera.pitch_deg,
                         camera.roll_deg, bone_length_cv(world), skating(fitted, contact, fps),
-                        skating(motion.joints, contact, fps))
+                        skating(motion.joints, contact, fps),
+                        None if feet is None else carry_feet(feet, fitted, motion.joints))

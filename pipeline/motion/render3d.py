@@ -14,10 +14,10 @@ from pipeline.core.errors import MediaError
 from pipeline.core.storage import atomic_path
 from pipeline.core.timecode import format_time
 from pipeline.ingest.media import ffmpeg_exe
-from pipeline.motion.mocap.skeleton import H36M_BONES
+from pipeline.motion.mocap.skeleton import FOOT_BONES, H36M_BONES
 
-LEFT = {4, 5, 6, 11, 12, 13}
-RIGHT = {1, 2, 3, 14, 15, 16}
+LEFT = {4, 5, 6, 11, 12, 13, 17, 19}
+RIGHT = {1, 2, 3, 14, 15, 16, 18, 20}
 
 
 def _colour(a: int, b: int) -> tuple[int, int, int]:
@@ -29,7 +29,8 @@ def _colour(a: int, b: int) -> tuple[int, int, int]:
 
 
 def _draw_bones(image: np.ndarray, pts: np.ndarray) -> None:
-    for a, b in H36M_BONES:
+    """H36M-17 bones, and the feet when ``pts`` has 21 joints."""
+    for a, b in H36M_BONES + (FOOT_BONES if len(pts) == 21 else ()):
         cv2.line(image, tuple(int(v) for v in pts[a]), tuple(int(v) for v in pts[b]), _colour(a, b), 3, cv2.LINE_AA)
 
 
@@ -84,7 +85,9 @@ def draw_world(joints: np.ndarray, contact: np.ndarray, trail: np.ndarray, centr
             cv2.polylines(panel, [path.astype(np.int32)], False, (0, 170, 255), 2, cv2.LINE_AA)
         for foot, ankle in enumerate((6, 3)):
             if contact[foot]:
-                spot = project(joints[ankle] * [1, 0, 1])
+                # under the middle of the foot when heels and toes are known, else under the ankle
+                place = joints[[17 + foot, 19 + foot]].mean(0) if len(joints) == 21 else joints[ankle]
+                spot = project(place * [1, 0, 1])
                 cv2.circle(panel, (int(spot[0]), int(spot[1])), 8, (60, 220, 60), -1, cv2.LINE_AA)
         pts = project(joints)
         _draw_bones(panel, pts)
@@ -100,9 +103,9 @@ def draw_world(joints: np.ndarray, contact: np.ndarray, trail: np.ndarray, centr
 
 def render_clip(joints: np.ndarray, times: np.ndarray, fps: float, out: Path, *, audio: Path | None = None,
                 title: str = "", contact: np.ndarray | None = None) -> None:
-    """Write ``out`` (H.264 mp4); ``audio`` (the segment's wav) is cut to the clip's times. With
-    ``contact`` (T x 2), ``joints`` are world motion and are drawn with ``draw_world``."""
-    """Write ``out`` (H.264 mp4); ``audio`` (the segment's wav) is cut to the clip's times."""
+    """Write ``out`` (H.264 mp4); ``audio`` (the segment's wav) is cut to the clip's times.
+    ``joints``: T x 17 x 3, or 21 with the heels and toes. With ``contact`` (T x 2), ``joints``
+    are world motion and are drawn with ``draw_world``."""
     size = 480
     with atomic_path(out) as tmp:
         cmd = [ffmpeg_exe(), "-hide_banner", "-nostdin", "-loglevel", "error", "-y", "-f", "rawvideo",

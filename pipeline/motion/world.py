@@ -7,7 +7,9 @@ gravity. Its tilt in the camera frame is the camera's pitch and roll, recorded w
 With a root trajectory (``trajectory.root_from_2d``) the body travels and jumps, and the floor
 is where the lower ankle rests most of the time (its 5th percentile height, an ankle sitting
 ``ANKLE_HEIGHT`` above the floor). Without one, the lower ankle is set on the floor in every
-frame: crouches are kept, jumps are not seen.
+frame: crouches are kept, jumps are not seen. With heels and toe tips (a lifter with feet),
+the lowest foot point takes the ankle's place, ``FOOT_POINT_HEIGHT`` above the floor, so a
+dancer on the balls of the feet is not pushed into it.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import numpy as np
 from pipeline.motion.mocap.skeleton import smallest_rotation, unit
 
 ANKLE_HEIGHT = 0.08   # m, ankle joint centre above the floor when the foot is flat
+FOOT_POINT_HEIGHT = 0.02  # m, a heel or toe-tip keypoint above the floor it stands on
 # Camera frame to a level world: y down -> up, z away from the camera -> toward it (180 deg about x).
 _FLIP = np.diag([1.0, -1.0, -1.0])
 
@@ -45,20 +48,29 @@ def estimate_camera(joints_cam: np.ndarray) -> CameraEstimate:
     return CameraEstimate(rotation, pitch, roll)
 
 
+def lowest_point(world: np.ndarray) -> tuple[np.ndarray, float]:
+    """Per frame, the height of the lowest foot point (ankles; heels and toes when the joints
+    (T x 17 or 21 x 3) have them) and how high above the floor that point sits when standing."""
+    if world.shape[1] == 21:
+        return world[:, 17:, 1].min(1), FOOT_POINT_HEIGHT
+    return np.minimum(world[:, 3, 1], world[:, 6, 1]), ANKLE_HEIGHT
+
+
 def to_world(joints_cam: np.ndarray, camera: CameraEstimate | None = None,
              root: np.ndarray | None = None) -> tuple[np.ndarray, CameraEstimate]:
-    """Root-relative camera-frame joints (T x 17 x 3), and optionally the root's camera-frame path
-    (T x 3), -> world joints with the floor at y = 0 and the root starting above the origin."""
+    """Root-relative camera-frame joints (T x 17 x 3, or 21 with the feet), and optionally the root's
+    camera-frame path (T x 3), -> world joints with the floor at y = 0 and the root starting above
+    the origin."""
     camera = camera or estimate_camera(joints_cam)
     rel = joints_cam - joints_cam[:, :1]
     if root is None:
         world = rel @ camera.rotation.T
-        lowest = np.minimum(world[:, 3, 1], world[:, 6, 1])
-        world[..., 1] += (ANKLE_HEIGHT - lowest)[:, None]
+        lowest, height = lowest_point(world)
+        world[..., 1] += (height - lowest)[:, None]
         return world, camera
     world = (rel + root[:, None]) @ camera.rotation.T
-    lowest = np.minimum(world[:, 3, 1], world[:, 6, 1])
-    world[..., 1] += ANKLE_HEIGHT - np.percentile(lowest, 5)
+    lowest, height = lowest_point(world)
+    world[..., 1] += height - np.percentile(lowest, 5)
     world[..., [0, 2]] -= world[0, 0, [0, 2]]
     return world, camera
 

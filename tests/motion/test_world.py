@@ -141,3 +141,32 @@ def test_render_world_draws_the_grounded_clip(dance: np.ndarray, tmp_path: Path)
     ok, frame = video.read()
     assert ok and frame.shape == (480, 960, 3) and int(video.get(cv2.CAP_PROP_FRAME_COUNT)) == 30
     assert (np.abs(frame.astype(int) - 24).sum(-1) > 60).mean() > 0.01  # a grid and a skeleton drawn
+
+
+def test_with_heels_and_toes_the_floor_is_under_the_feet_and_a_foot_on_its_ball_stands(mocap_dir: Path) -> None:
+    from pipeline.motion.contact import foot_contact
+    from pipeline.motion.grounding import ground_clip
+    from pipeline.motion.world import FOOT_POINT_HEIGHT
+
+    seq = load_source(mocap_dir, "dancedb_ucy")[0]
+    fps = seq.fps / 2
+    joints, feet = seq.h36m[::2], seq.feet[::2]
+    cam, _ = _pitched_view(np.concatenate([joints, feet], 1), 0.0)
+    world, _ = to_world(cam, root=joints[:, 0] - joints[0, 0])
+    lowest = world[:, 17:, 1].min(1)
+    assert abs(np.percentile(lowest, 5) - FOOT_POINT_HEIGHT) < 1e-9  # the feet, not the ankles, meet the floor
+    # Standing still on the left foot's ball: the ankle 12 cm up (no contact by the ankle rule), the toe down.
+    raised = np.repeat(world[:1], 20, axis=0)
+    raised[:, [4, 5, 6, 17], 1] += 0.12
+    raised[:, 6, 1] = ANKLE_HEIGHT + 0.12
+    raised[:, 19, 1] = FOOT_POINT_HEIGHT
+    by_ankle = foot_contact(raised[:, :17], fps)
+    by_feet = foot_contact(raised[:, :17], fps, feet=raised[:, 17:])
+    assert not by_ankle[:, 0].any() and by_feet[:, 0].all()
+    # Grounding carries the feet with their ankles through the one skeleton and the pinning.
+    grounded = ground_clip(cam[:, :17], joints[:, 0] - joints[0, 0] + [0.0, 0.0, 4.0], fps, cam[:, 17:])
+    assert grounded.feet.shape == (len(joints), 4, 3)
+    for side, (ankle, heel, toe) in enumerate(((6, 17, 19), (3, 18, 20))):
+        heel_len = np.linalg.norm(grounded.feet[:, side] - grounded.joints[:, ankle], axis=-1)
+        truth = np.linalg.norm(feet[:, side] - joints[:, ankle], axis=-1)
+        assert np.abs(np.median(heel_len) - np.median(truth)) < 0.01

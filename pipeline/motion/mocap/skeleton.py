@@ -26,6 +26,8 @@ WORLD_UP = np.array([0.0, 1.0, 0.0])
 FEET = ("left_heel", "right_heel", "left_toe", "right_toe")
 FEET_FLIP = (1, 0, 3, 2)
 H36M21 = H36M17 + FEET
+# Each foot drawn as a triangle: ankle-heel, ankle-toe, heel-toe (indices into the 21 joints).
+FOOT_BONES = ((6, 17), (6, 19), (17, 19), (3, 18), (3, 20), (18, 20))
 COCO21_FLIP = COCO_FLIP + tuple(17 + i for i in FEET_FLIP)
 H36M21_FLIP = H36M_FLIP + tuple(17 + i for i in FEET_FLIP)
 # A standing adult's foot in the sagittal plane, ankle centre at the origin, x forward, y up, in
