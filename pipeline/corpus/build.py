@@ -77,7 +77,7 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
             if not starts:
                 counts["clips_too_short"] += 1
                 continue
-            grounded = ground_clip(clip.joints, clip.root, fps)
+            grounded = ground_clip(clip.joints, clip.root, fps, clip.feet)
             counts.setdefault("grounding", []).append({
                 "clip_id": clip.clip_id, "pitch_deg": round(grounded.pitch_deg, 1),
                 "roll_deg": round(grounded.roll_deg, 1), "bone_cv_before": round(grounded.cv_before, 4),
@@ -96,10 +96,16 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
                         "bone_lengths": grounded.bone_lengths, "camera_pitch": grounded.pitch_deg,
                         "camera_roll": grounded.roll_deg, **window_beats(feats, joints, k, window, fps)}
                 world = grounded.joints[i: i + window].copy()
-                world[..., [0, 2]] -= world[0, 0, [0, 2]]  # x/z from the window's first root position
+                start = world[0, 0, [0, 2]].copy()
+                world[..., [0, 2]] -= start  # x/z from the window's first root position
+                feet = None if clip.feet is None else clip.feet[i: i + window]
+                world_feet = None if grounded.feet is None else grounded.feet[i: i + window].copy()
+                if world_feet is not None:
+                    world_feet[..., [0, 2]] -= start
                 windows.append(Window(meta, joints, feats.mfcc[k: k + window], feats.chroma[k: k + window],
                                       feats.onset[k: k + window], feats.beat[k: k + window], world,
-                                      grounded.contact[i: i + window], grounded.rotations_6d[i: i + window]))
+                                      grounded.contact[i: i + window], grounded.rotations_6d[i: i + window],
+                                      feet, world_feet))
     return windows, counts
 
 

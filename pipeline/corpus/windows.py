@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 
-SCHEMA_VERSION = 4  # 2: beat, downbeat and motion-beat frames, alignment scores; any frame rate. 3: tags.
+SCHEMA_VERSION = 5  # 2: beat, downbeat and motion-beat frames, alignment scores; any frame rate. 3: tags.
 #                    4: world-frame joints, root path, foot contact, bone lengths, 6D rotations, camera pitch/roll
 FPS = 24  # the default corpus rate
 MFCC_DIMS = 39
@@ -56,6 +56,8 @@ def corpus_schema(window: int) -> pa.Schema:
         ("world_joints", fixed(fixed(fixed(pa.float32(), 3), 17), window)),  # y up, floor 0, x/z from window start
         ("root", fixed(fixed(pa.float32(), 3), window)),                      # world_joints' pelvis: the path
         ("contact", fixed(fixed(pa.int8(), 2), window)),                      # left, right foot on the floor
+        ("feet", fixed(fixed(fixed(pa.float32(), 3), 4), window)),            # heels, toe tips like motion (NaN: none)
+        ("world_feet", fixed(fixed(fixed(pa.float32(), 3), 4), window)),      # ... like world_joints
         ("rotations_6d", fixed(fixed(fixed(pa.float32(), 6), ROTATION_JOINTS), window)),
         ("bone_lengths", fixed(pa.float32(), BONES)),                         # the clip's one skeleton (m)
         ("camera_pitch", pa.float32()), ("camera_roll", pa.float32()),         # degrees, estimated per clip
@@ -83,6 +85,8 @@ class Window:
     world: np.ndarray | None = None      # W x 17 x 3 world joints (None: NaN columns)
     contact: np.ndarray | None = None    # W x 2
     rotations: np.ndarray | None = None  # W x ROTATION_JOINTS x 6
+    feet: np.ndarray | None = None       # W x 4 x 3 heels and toe tips, camera frame like motion (None: NaN)
+    world_feet: np.ndarray | None = None  # W x 4 x 3 the same in the world frame
 
 
 def _nested(values: np.ndarray, dtype: pa.DataType, shape: tuple[int, ...]) -> pa.Array:
@@ -95,7 +99,7 @@ def _nested(values: np.ndarray, dtype: pa.DataType, shape: tuple[int, ...]) -> p
 def windows_table(windows: list[Window], window: int) -> pa.Table:
     schema = corpus_schema(window)
     tensors = ("motion", "mfcc", "chroma", "onset", "beat", "world_joints", "root", "contact", "rotations_6d",
-               "bone_lengths")
+               "bone_lengths", "feet", "world_feet")
     defaults = {**BEAT_DEFAULTS, **WORLD_DEFAULTS}
     scalars = {name: [w.meta.get(name, defaults[name]) if name in defaults else w.meta[name] for w in windows]
                for name in schema.names if name not in tensors}
@@ -122,6 +126,8 @@ def windows_table(windows: list[Window], window: int) -> pa.Table:
         "rotations_6d": _nested(stack("rotations", (window, ROTATION_JOINTS, 6)).astype(np.float32), pa.float32(),
                                 (window, ROTATION_JOINTS, 6)),
         "bone_lengths": _nested(lengths.astype(np.float32), pa.float32(), (BONES,)),
+        "feet": _nested(stack("feet", (window, 4, 3)).astype(np.float32), pa.float32(), (window, 4, 3)),
+        "world_feet": _nested(stack("world_feet", (window, 4, 3)).astype(np.float32), pa.float32(), (window, 4, 3)),
     }
     columns = [arrays[f.name] if f.name in arrays else pa.array(scalars[f.name], f.type) for f in schema]
     return pa.Table.from_arrays(columns, schema=schema)

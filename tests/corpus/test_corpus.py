@@ -96,7 +96,7 @@ def test_shards_round_trip_through_pyarrow_pandas_and_datasets(corpus) -> None:
         assert np.array_equal(np.array(record["motion"], np.float32), by_id[record["window_id"]].motion)
         assert np.array_equal(np.array(record["beat"], np.int8), by_id[record["window_id"]].beat)
     meta = pq.read_schema(files[0]).metadata[b"dance3d"]
-    assert b'"schema_version": 4' in meta and b'"fps": 24' in meta
+    assert b'"schema_version": 5' in meta and b'"fps": 24' in meta
     assert b"LeftShoulderRoot" in meta and b"left_hip-left_knee" in meta  # rotation joint and bone names
 
 
