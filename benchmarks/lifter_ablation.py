@@ -10,6 +10,7 @@ Variants add one change at a time to the previous default (``previous``):
   +losses      + velocity (0.5) and bone-length consistency (0.5) terms
   +centred     +noise with 2D input about the hips, divided by the body's image size (not VideoPose3D's screen frame)
   +framing     + people filling 20-95 % of the image height in training (was 35-95 %)
+  +feet        + heels and toe tips in and out (21 joints; the body still scored on its 17)
   rf81         the above with an 81-frame receptive field, 256 channels
   rf243        the above with a 243-frame receptive field, 256 channels
 """
@@ -41,7 +42,7 @@ def variants(steps: int) -> dict[str, LifterConfig]:
     centred = replace(noise, input_norm="centred")  # the loss terms did not help (README): left out
     framing = replace(centred, augment=replace(centred.augment, fill=(0.2, 0.95)))
     return {"previous": previous, "+choreonet": choreo, "+noise": noise, "+losses": losses, "+centred": centred,
-            "+framing": framing, "rf81": replace(framing, filter_widths=(3, 3, 3, 3), channels=256),
+            "+framing": framing, "+feet": replace(framing, feet=True), "rf81": replace(framing, filter_widths=(3, 3, 3, 3), channels=256),
             "rf243": replace(framing, filter_widths=(3, 3, 3, 3, 3), channels=256)}
 
 
@@ -49,7 +50,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--mocap", type=Path, default=Path(os.environ.get("DANCE3D_MOCAP", "../shared/mocap")))
     parser.add_argument("--steps", type=int, default=3000)
-    parser.add_argument("--variants", default="previous,+choreonet,+noise,+losses,rf81")
+    parser.add_argument("--variants", default="previous,+choreonet,+noise,+losses,+centred,+framing,+feet")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/lifter_ablation.json"))
     args = parser.parse_args()
     configs = variants(args.steps)

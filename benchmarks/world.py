@@ -16,7 +16,10 @@ HP-filtered as the smooth stage does (lambda 1), then:
 - bones: the largest limb-length coefficient of variation before and after one skeleton per
   clip, and how far that moved the joints;
 - skating: horizontal ankle speed while in contact, before and after pinning the feet, beside
-  the motion capture's own (the same contact rule on the true motion).
+  the motion capture's own (the same contact rule on the true motion);
+- contact (a lifter with feet): the F1 score of each frame's foot-contact flags against the
+  motion capture's (its heel or toe tip within 3 cm of rest and slower than 0.2 m/s), judged
+  from the lifted heels and toes and, beside it, from the lifted ankles alone.
 """
 
 from __future__ import annotations
@@ -30,10 +33,10 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.motion.bones import apply_skeleton, bone_length_cv, fit_skeleton
-from pipeline.motion.contact import foot_contact, pin_feet, skating
+from pipeline.motion.contact import carry_feet, foot_contact, pin_feet, skating
 from pipeline.motion.lifting.evaluate import Camera, add_pose_noise, camera_pose, split, view
 from pipeline.motion.lifting.infer import load_lifter
-from pipeline.motion.mocap.sources import first_seconds, load_folder, resample
+from pipeline.motion.mocap.sources import first_seconds, keypoints_and_joints, load_folder, resample
 from pipeline.motion.smoothing import hp_trend
 from pipeline.motion.trajectory import align_scale_offset, assumed_focal, root_from_2d
 from pipeline.motion.world import to_world, up_error_deg
@@ -43,24 +46,39 @@ PITCHES = (-20.0, -10.0, 0.0, 10.0, 20.0)
 HEADINGS = (0.0, 120.0, 240.0)
 
 
-def measure(lift, seq, heading: float, pitch: float, rng: np.random.Generator) -> dict:
+def f1(estimate: np.ndarray, truth: np.ndarray) -> float:
+    hits = float((estimate & truth).sum())
+    return 2 * hits / max(1.0, float(estimate.sum() + truth.sum()))
+
+
+def measure(lift, seq, heading: float, pitch: float, rng: np.random.Generator, feet: bool) -> dict:
     camera = Camera(f"phone_{heading:g}_{pitch:+g}", heading, 1.2, 3.0, WIDTH, HEIGHT, pitch_deg=pitch)
-    xy, joints = view(seq.h36m, seq.coco, camera)
+    keypoints, body = keypoints_and_joints(seq, feet)
+    xy, everything = view(body, keypoints, camera)
+    joints = everything[:, :17]
     true_up = camera_pose(seq.h36m, camera)[0] @ [0.0, 1.0, 0.0]
     xy = add_pose_noise(xy, rng)
     (rel,) = lift([xy], WIDTH, HEIGHT)
     rel = rel.astype(np.float64)
-    root = root_from_2d(rel, xy, assumed_focal(WIDTH, HEIGHT), WIDTH, HEIGHT)
+    root = root_from_2d(rel[:, :17], xy[:, :17], assumed_focal(WIDTH, HEIGHT), WIDTH, HEIGHT)
     rel = hp_trend(rel.reshape(len(rel), -1), 1.0).reshape(rel.shape)  # the smooth stage
     root = hp_trend(root, 1.0)
     true_root = joints[:, 0]
-    world, camera = to_world(rel, root=root)
+    world_all, camera = to_world(rel, root=root)
+    world = world_all[:, :17]
     lengths = fit_skeleton(world)
     fitted = apply_skeleton(world, lengths)
     contact = foot_contact(fitted, FPS)
     pinned = pin_feet(fitted, contact)
-    truth, _ = to_world(joints - joints[:, :1], root=true_root)
-    return {"up_deg": up_error_deg(camera, true_up), "pitch_error_deg": camera.pitch_deg - pitch,
+    truth_all, _ = to_world(everything - everything[:, :1], root=true_root)
+    truth = truth_all[:, :17]
+    feet_rows = {}
+    if feet:
+        true_contact = foot_contact(truth, FPS, feet=truth_all[:, 17:], feet_height=0.03, speed=0.2)
+        by_feet = foot_contact(fitted, FPS, feet=carry_feet(world_all[:, 17:], world, fitted))
+        feet_rows = {"contact_f1_feet": f1(by_feet, true_contact), "contact_f1_ankles": f1(contact, true_contact),
+                     "contact_share_true": float(true_contact.mean())}
+    return {**feet_rows, "up_deg": up_error_deg(camera, true_up), "pitch_error_deg": camera.pitch_deg - pitch,
             "root_mm": 1000 * float(np.linalg.norm(root - true_root, axis=-1).mean()),
             "root_aligned_mm": 1000 * float(np.linalg.norm(align_scale_offset(root, true_root) - true_root,
                                                            axis=-1).mean()),
@@ -88,7 +106,7 @@ def main() -> None:
         seq = first_seconds(resample(seq, FPS), args.seconds)
         for heading in HEADINGS:
             for pitch in PITCHES:
-                row = measure(lift, seq, heading, pitch, rng)
+                row = measure(lift, seq, heading, pitch, rng, lifter.feet)
                 rows.setdefault(seq.source, []).append({"pitch": pitch, **row})
     keys = [k for k in next(iter(rows.values()))[0] if k != "pitch"]
     summary = {source: {k: float(np.nanmedian([r[k] for r in rs])) for k in keys} for source, rs in rows.items()}
@@ -104,6 +122,12 @@ def main() -> None:
         print(f"{source:26s} {s['up_deg']:5.1f} {s['root_mm']:8.0f} {s['root_aligned_mm']:8.0f} "
               f"{s['cv_before']:6.1%} {s['cv_after']:6.1%} {s['fit_moved_mm']:6.1f} {s['skate_before']:9.3f} "
               f"{s['skate_after']:7.3f} {s['skate_mocap']:6.3f}")
+    if lifter.feet:
+        print(f"{'source':26s} contact F1: heels and toes  ankles alone  (true contact share)")
+        for source, s in summary.items():
+            if source != "all_by_pitch":
+                print(f"{source:26s}             {s['contact_f1_feet']:15.3f} {s['contact_f1_ankles']:13.3f}  "
+                      f"({s['contact_share_true']:.2f})")
     print("by pitch (median up error deg, aligned root mm):",
           {p: (round(v["up_deg"], 1), round(v["root_aligned_mm"])) for p, v in summary["all_by_pitch"].items()})
     args.out.parent.mkdir(parents=True, exist_ok=True)
