@@ -34,8 +34,8 @@ H36M21_FLIP = H36M_FLIP + tuple(17 + i for i in FEET_FLIP)
 # shares of stature (Drillis & Contini's segment proportions: ankle height 0.039, foot length 0.152;
 # the ankle a quarter of the foot from the heel, the ball at 72 % of it). Sole points sit 4 mm above
 # the floor, as skin markers and a pose model's heel do.
-FOOT_TEMPLATE = {"ankle": (0.0, 0.0), "heel": (-0.038, -0.037), "ball": (0.071, -0.037), "tip": (0.114, -0.037)}
-FOOT_TEMPLATE_FLOOR = -0.039
+FOOT_TEMPLATE = {"heel": (-0.038, -0.037), "ball": (0.071, -0.037), "tip": (0.114, -0.037)}
+FOOT_TEMPLATE_FLOOR = -0.039  # the floor below the ankle, share of stature
 
 
 def unit(v: np.ndarray) -> np.ndarray:
@@ -100,18 +100,21 @@ def foot_points(knee: np.ndarray, ankle: np.ndarray, point: np.ndarray, kind: st
     anchor = np.arctan2(FOOT_TEMPLATE[kind][1], FOOT_TEMPLATE[kind][0])
     out = {}
     for name, (x, y) in FOOT_TEMPLATE.items():
-        if name == "ankle":
-            continue
         angle, radius = np.arctan2(y, x) - anchor, np.hypot(x, y) * stature_m
         out[name] = ankle + radius * (np.cos(angle) * forward + np.sin(angle) * up)
     if floor is not None:
-        sole = floor + (FOOT_TEMPLATE["tip"][1] - FOOT_TEMPLATE_FLOOR) * stature_m
+        sole = sole_height(floor, stature_m)
         ball, toes = out["ball"], out["tip"] - out["ball"]
         length = np.linalg.norm(toes, axis=-1, keepdims=True)
         drop = np.clip(ball[:, 1:2] - sole, 0.0, length)
         bent = ball + unit(toes * [1.0, 0.0, 1.0]) * np.sqrt(length ** 2 - drop ** 2) - drop * [0.0, 1.0, 0.0]
         out["tip"] = np.where(out["tip"][:, 1:2] < sole, bent, out["tip"])
     return out
+
+
+def sole_height(floor: float, stature_m: float) -> float:
+    """The height of the template's sole points (heel, ball, toe tip) standing on ``floor``."""
+    return floor + (FOOT_TEMPLATE["heel"][1] - FOOT_TEMPLATE_FLOOR) * stature_m
 
 
 def floor_height(points: np.ndarray) -> float:

@@ -23,8 +23,8 @@ from scipy.spatial.transform import Rotation
 from pipeline.core.errors import InputError
 from pipeline.motion.mocap.bvh import Bvh, forward_kinematics, read_bvh
 from pipeline.motion.mocap.markers import feet_from_markers, h36m_from_markers, read_c3d
-from pipeline.motion.mocap.skeleton import (FOOT_TEMPLATE, FOOT_TEMPLATE_FLOOR, coco_from_h36m, feet_array,
-                                            floor_height, foot_points, head_frame, leg_stature, stature, unit)
+from pipeline.motion.mocap.skeleton import (FOOT_TEMPLATE, coco_from_h36m, feet_array, floor_height, foot_points,
+                                            head_frame, leg_stature, sole_height, stature, unit)
 
 
 @dataclass
@@ -138,7 +138,7 @@ def _rig_feet(bvh: Bvh, source: BvhSource, positions: np.ndarray, rotations: np.
         if flat.sum() < 3:
             flat = ankle[:, 1] <= np.percentile(ankle[:, 1], 10)
         forward = unit((toe_point - ankle) * [1.0, 0.0, 1.0])[flat]
-        sole = floor + (FOOT_TEMPLATE["heel"][1] - FOOT_TEMPLATE_FLOOR) * size  # 4 mm above the floor
+        sole = sole_height(floor, size)
 
         def ride(points: np.ndarray, joint: int) -> np.ndarray:
             """Points placed in the flat frames -> the same points in every frame, carried by ``joint``."""
