@@ -126,6 +126,25 @@ def test_eval_lifter_scores_an_onnx_lifter_on_a_folder_of_joint_files(tmp_path: 
     assert result["protocol"]["split"] == "every sequence" and result["clean"]["mpjpe_mm"] > 0
 
 
+def test_a_lifter_with_feet_asks_for_capture_with_feet(tmp_path: Path, capsys) -> None:
+    torch = pytest.importorskip("torch")
+    from pipeline.motion.lifting.model import TemporalModel
+    from pipeline.motion.lifting.train import export_onnx
+
+    torch.manual_seed(0)
+    export_onnx(TemporalModel(21, 21, (3, 3), 16).eval(), tmp_path / "feet.onnx")
+    capture = tmp_path / "capture"
+    capture.mkdir()
+    seq = _walker()
+    np.savez(capture / "walk.npz", joints=seq.h36m, fps=25.0)
+    args = ["--root", str(tmp_path), "eval", "lifter", "--mocap", str(capture), "--model", str(tmp_path / "feet.onnx")]
+    assert main(args) == 2
+    assert f"{capture}: 1 sequences (capture/walk) have no heels and toes, which lifter" in capsys.readouterr().err
+    np.savez(capture / "walk.npz", joints=seq.h36m, fps=25.0, feet=seq.h36m[:, [6, 3, 6, 3]] - [0.0, 0.08, 0.0])
+    assert main(args) == 0
+    assert "feet" in capsys.readouterr().out
+
+
 def test_eval_lifter_names_a_folder_without_motion_capture(tmp_path: Path, capsys) -> None:
     (tmp_path / "empty").mkdir()
     (tmp_path / "params.yaml").write_text("lift: {model: models/lifter.onnx}\n")

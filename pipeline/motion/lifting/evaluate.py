@@ -195,9 +195,8 @@ def evaluate_onnx(model: Path, mocap: Path, *, heldout_only: bool = True, flip: 
     if lifter.feet:
         lacking = [s.name for s in sequences if s.feet is None]
         if lacking:
-            raise InputError(Path(mocap) / lacking[0].split("/")[-1],
-                             f"{len(lacking)} sequences have no heels and toes, which lifter {model} takes "
-                             "(add 'feet' to a joint-position .npz)")
+            raise InputError(mocap, f"{len(lacking)} sequences ({', '.join(lacking[:3])}) have no heels and toes, "
+                                    f"which lifter {model} takes (add 'feet' to a joint-position .npz)")
     result = evaluate_lifter(partial(lifter.lift, flip=flip), sequences, max_seconds=max_seconds,
                              feet=lifter.feet)
     result["protocol"].update(model=str(model), mocap=str(mocap), flip=flip,
