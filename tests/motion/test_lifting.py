@@ -236,16 +236,20 @@ def test_the_shipped_lifter_says_what_made_it_and_holds_its_figures_on_held_out_
     assert all(name.startswith(HOLDOUT) for name in trained_on["heldout"])
     assert "choreonet_c3d" in trained_on["train_minutes_per_source"] and len(meta["git_commit"]) == 40
     assert params["steps"] == int(meta["steps"]) and meta["input_norm"] == params["input_norm"]
+    assert params["feet"] and meta["joints_in"] == "coco17+feet" and meta["joints_out"] == "h36m17+feet"
     result = evaluate_onnx(SHIPPED, mocap_dir)
     assert result["protocol"]["split"].startswith("held-out")
     clean = result["clean"]
-    # Issue 14's target is P-MPJPE <= 70 and MPJPE <= 100 mm: P-MPJPE 57.0 meets it, MPJPE 100.1 is
-    # 0.1 mm over (the held-out 8-year-old is lifted at adult size: 151 mm; README, "3D lifting").
-    assert clean["p_mpjpe_mm"] <= 60 and clean["mpjpe_mm"] <= 101, clean
+    # Issue 14's target: P-MPJPE <= 70 and MPJPE <= 100 mm on clean 2D (measured 54.1 and 91.8).
+    assert clean["p_mpjpe_mm"] <= 70 and clean["mpjpe_mm"] <= 100, clean
     assert result["noisy"]["p_mpjpe_mm"] < clean["mean_pose_p_mpjpe_mm"] / 2
+    # The heels and toe tips: under half the mean pose's error (measured 141.8 against 298.0 mm).
+    assert clean["feet_mpjpe_mm"] < clean["mean_pose_feet_mpjpe_mm"] / 2
     # The figures recorded at training are the ones measured here.
     recorded = json.loads(meta["metrics"])
-    assert abs(recorded["val_p_mpjpe_mm"] - clean["p_mpjpe_mm"]) < 0.5
+    for key, measured in (("val_p_mpjpe_mm", clean["p_mpjpe_mm"]), ("val_mpjpe_mm", clean["mpjpe_mm"]),
+                          ("val_feet_mpjpe_mm", clean["feet_mpjpe_mm"])):
+        assert abs(recorded[key] - measured) < 0.5, key
 
 
 def test_the_train_lifter_stage_trains_a_profile_and_records_what_made_it(tmp_path: Path, mocap_dir: Path) -> None:
