@@ -183,7 +183,7 @@ PyTorch loader is `pipeline.train.dataset.WindowDataset`. Each file's key-value 
 | motion | {round(window * fps)} x 17 x 3 float32 | Human3.6M-17 joints, metres, root-relative, camera frame (x right, y down, z away) |
 | world_joints | {round(window * fps)} x 17 x 3 float32 | the same joints in a gravity-aligned world frame: y up, floor at y = 0, x/z in metres from the root at the window's first frame; the root travels and jumps (its path from where the pose projects), one skeleton per clip (constant bone lengths), feet pinned while in contact |
 | root | {round(window * fps)} x 3 float32 | the pelvis of world_joints: the root trajectory |
-| contact | {round(window * fps)} x 2 int8 | 1 while the left / right foot is on the floor: its lower point, heel or toe tip, within 5 cm of rest and slower than 0.3 m/s (a lifter without feet: the ankle within 10 cm) |
+| contact | {round(window * fps)} x 2 int8 | 1 while the left / right foot is on the floor (ankle within 10 cm of rest, slower than 0.3 m/s) |
 | feet | {round(window * fps)} x 4 x 3 float32 | left heel, right heel, left toe tip, right toe tip, like motion (root-relative, camera frame); NaN when the lifter has no feet |
 | world_feet | {round(window * fps)} x 4 x 3 float32 | the same points like world_joints: they ride on the fitted, pinned ankles |
 | rotations_6d | {round(window * fps)} x 23 x 6 float32 | local joint rotations on the clip's skeleton, 6D (first two columns of each 3 x 3 rotation), joints in the order of `dance3d export bvh`'s hierarchy (file metadata `rotation_joints`); T-pose rest, y up, facing +z |

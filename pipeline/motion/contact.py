@@ -5,8 +5,9 @@ is the horizontal ankle speed while in contact (a planted foot does not slide). 
 holds each contact's foot where it landed, bending the leg with two-bone inverse kinematics
 (thigh and shin keep their lengths; the knee stays in its own bending plane), easing in and
 out over a few frames. With heels and toe tips (a lifter with feet) contact is judged at the
-foot's lower point, heel or toe, so a foot on its ball or its heel stands too; the feet ride
-on their ankles when legs are bent. Skating stays measured at the ankles (comparable either way).
+foot's lower point, heel or toe, so a foot on its ball or its heel stands too (the corpus keeps
+the ankle rule: on lifted motion the feet rule scored no better, README); the feet ride on
+their ankles when legs are bent. Skating stays measured at the ankles (comparable either way).
 """
 
 from __future__ import annotations

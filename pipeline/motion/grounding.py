@@ -40,7 +40,9 @@ def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float,
     world = everything[:, :17]
     fitted = apply_skeleton(world, fit_skeleton(world))
     feet = None if feet_cam is None else carry_feet(everything[:, 17:], world, fitted)
-    contact = foot_contact(fitted, fps, feet=feet)
+    # Contact stays judged at the ankles: on lifted motion the heels and toes did no better
+    # (benchmarks/world.py, README "Root path, world frame").
+    contact = foot_contact(fitted, fps)
     motion = solve_rotations(pin_feet(fitted, contact))  # pinning bends legs: rotations of the final pose
     six = motion.local[..., :, :2].transpose(0, 1, 3, 2).reshape(len(world), len(BVH_JOINTS), 6)
     return GroundedClip(motion.joints, contact, fit_skeleton(motion.joints), six, camera.pitch_deg,
