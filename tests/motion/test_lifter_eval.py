@@ -104,17 +104,23 @@ def test_the_feet_are_scored_apart_from_the_body() -> None:
                                                   cameras=PROTOCOL_CAMERAS[:1])["clean"]
 
 
-def test_eval_lifter_scores_an_onnx_lifter_on_a_folder_of_joint_files(tmp_path: Path, capsys) -> None:
+def _untrained_lifter_and_capture(tmp_path: Path, joints: int) -> tuple[Path, Path, MocapSequence]:
+    """An untrained ONNX lifter of ``joints`` joints in and out, and a folder with one walk (no feet)."""
     torch = pytest.importorskip("torch")
     from pipeline.motion.lifting.model import TemporalModel
     from pipeline.motion.lifting.train import export_onnx
 
     torch.manual_seed(0)
-    export_onnx(TemporalModel(17, 17, (3, 3), 16).eval(), tmp_path / "lifter.onnx")
+    export_onnx(TemporalModel(joints, joints, (3, 3), 16).eval(), tmp_path / "lifter.onnx")
     capture = tmp_path / "capture"
     capture.mkdir()
     seq = _walker()
     np.savez(capture / "walk.npz", joints=seq.h36m, fps=25.0)
+    return tmp_path / "lifter.onnx", capture, seq
+
+
+def test_eval_lifter_scores_an_onnx_lifter_on_a_folder_of_joint_files(tmp_path: Path, capsys) -> None:
+    _, capture, _ = _untrained_lifter_and_capture(tmp_path, 17)
     out = tmp_path / "r.json"
     assert main(["--root", str(tmp_path), "eval", "lifter", "--mocap", str(capture), "--model",
                  str(tmp_path / "lifter.onnx"), "--out", str(out)]) == 0
@@ -127,17 +133,8 @@ def test_eval_lifter_scores_an_onnx_lifter_on_a_folder_of_joint_files(tmp_path: 
 
 
 def test_a_lifter_with_feet_asks_for_capture_with_feet(tmp_path: Path, capsys) -> None:
-    torch = pytest.importorskip("torch")
-    from pipeline.motion.lifting.model import TemporalModel
-    from pipeline.motion.lifting.train import export_onnx
-
-    torch.manual_seed(0)
-    export_onnx(TemporalModel(21, 21, (3, 3), 16).eval(), tmp_path / "feet.onnx")
-    capture = tmp_path / "capture"
-    capture.mkdir()
-    seq = _walker()
-    np.savez(capture / "walk.npz", joints=seq.h36m, fps=25.0)
-    args = ["--root", str(tmp_path), "eval", "lifter", "--mocap", str(capture), "--model", str(tmp_path / "feet.onnx")]
+    model, capture, seq = _untrained_lifter_and_capture(tmp_path, 21)
+    args = ["--root", str(tmp_path), "eval", "lifter", "--mocap", str(capture), "--model", str(model)]
     assert main(args) == 2
     assert f"{capture}: 1 sequences (capture/walk) have no heels and toes, which lifter" in capsys.readouterr().err
     np.savez(capture / "walk.npz", joints=seq.h36m, fps=25.0, feet=seq.h36m[:, [6, 3, 6, 3]] - [0.0, 0.08, 0.0])
