@@ -470,13 +470,15 @@ def _export_bvh(args: argparse.Namespace) -> int:
     if clip is None:
         return 2
     joints = clip.joints.astype(np.float64)
+    if clip.feet is not None:  # heels and toe tips become joints of their own
+        joints = np.concatenate([joints, clip.feet.astype(np.float64)], 1)
     world, camera = to_world(joints, root=None if clip.root is None else clip.root.astype(np.float64))
     motion = solve_rotations(world)
     write_bvh(args.out, motion, float(read_meta(args.motion).get("fps", 24.0)))
     moved = np.linalg.norm(motion.joints - world, axis=-1)
-    print(f"wrote {args.out}: {len(joints)} frames; camera pitch {camera.pitch_deg:+.1f} deg, roll "
-          f"{camera.roll_deg:+.1f} deg; bone-length CV {bone_length_cv(world):.1%} -> "
-          f"{bone_length_cv(motion.joints):.1%}, joints moved {1000 * moved.mean():.1f} mm on average "
+    print(f"wrote {args.out}: {len(joints)} frames, {len(motion.spec)} joints; camera pitch {camera.pitch_deg:+.1f} "
+          f"deg, roll {camera.roll_deg:+.1f} deg; bone-length CV {bone_length_cv(world[:, :17]):.1%} -> "
+          f"{bone_length_cv(motion.joints[:, :17]):.1%}, joints moved {1000 * moved.mean():.1f} mm on average "
           f"({1000 * moved.max():.1f} mm at most)")
     return 0
 

@@ -8,6 +8,8 @@ smallest rotation from its parent's frame (a twist about a bone is not seen in j
 positions, so none is invented). Joints with several children reach each through a
 zero-length ``...Root`` joint of its own, so forward kinematics gives back every joint
 exactly. Channels: the root's position, then ``Zrotation Xrotation Yrotation`` (R = Rz·Rx·Ry).
+With heels and toe tips (21 joints), each foot gets a heel and a toe joint below its ankle,
+their lengths constant over the clip like the other bones.
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ class BvhJointSpec:
     rest: np.ndarray       # unit direction of the bone from the parent, at rest (zero for roots)
 
 
-def _spec() -> tuple[BvhJointSpec, ...]:
+def _spec(feet: bool = False) -> tuple[BvhJointSpec, ...]:
     joints: list[BvhJointSpec] = [BvhJointSpec("Hips", -1, 0, np.zeros(3))]
 
     def chain(parent: int, root_name: str, links: list[tuple[str, int, np.ndarray]]) -> int:
@@ -41,8 +43,13 @@ def _spec() -> tuple[BvhJointSpec, ...]:
             joints.append(BvhJointSpec(name, len(joints) - 1, h36m, rest))
         return len(joints) - 1
 
-    chain(0, "RightHipRoot", [("RightUpLeg", 1, -_X), ("RightLeg", 2, -_Y), ("RightFoot", 3, -_Y)])
-    chain(0, "LeftHipRoot", [("LeftUpLeg", 4, _X), ("LeftLeg", 5, -_Y), ("LeftFoot", 6, -_Y)])
+    right_foot = chain(0, "RightHipRoot", [("RightUpLeg", 1, -_X), ("RightLeg", 2, -_Y), ("RightFoot", 3, -_Y)])
+    left_foot = chain(0, "LeftHipRoot", [("LeftUpLeg", 4, _X), ("LeftLeg", 5, -_Y), ("LeftFoot", 6, -_Y)])
+    if feet:  # rest: the heel down and back, the toes forward and a little down (facing +z)
+        heel, toe = unit(np.array([0.0, -0.6, -0.8])), unit(np.array([0.0, -0.35, 0.94]))
+        for side, foot, heel_i, toe_i in (("Right", right_foot, 18, 20), ("Left", left_foot, 17, 19)):
+            chain(foot, f"{side}HeelRoot", [(f"{side}Heel", heel_i, heel)])
+            chain(foot, f"{side}ToeRoot", [(f"{side}Toe", toe_i, toe)])
     thorax = chain(0, "SpineRoot", [("Spine", 7, _Y), ("Thorax", 8, _Y)])
     chain(thorax, "NeckRoot", [("Neck", 9, _Y), ("Head", 10, _Y)])
     chain(thorax, "LeftShoulderRoot", [("LeftShoulder", 11, _X), ("LeftElbow", 12, _X), ("LeftWrist", 13, _X)])
@@ -51,6 +58,7 @@ def _spec() -> tuple[BvhJointSpec, ...]:
 
 
 BVH_JOINTS = _spec()
+BVH_JOINTS_FEET = _spec(feet=True)
 # Joints whose rotation is the whole frame of their body part: (x from right to left, y up).
 _FRAMES = {"Hips": ((1, 4), (0, 7)), "Thorax": ((14, 11), (8, 9))}
 _END_SITES = {"RightFoot": (0.0, -0.05, 0.1), "LeftFoot": (0.0, -0.05, 0.1), "Head": (0.0, 0.1, 0.0),
@@ -70,37 +78,62 @@ class SkeletonMotion:
     offsets: np.ndarray    # J x 3 rest offsets (metres) of the BVH joints
     root: np.ndarray       # T x 3 root (pelvis) positions
     local: np.ndarray      # T x J x 3 x 3 local rotations
-    joints: np.ndarray     # T x 17 x 3 the H36M joints on the skeleton (what forward kinematics gives)
+    joints: np.ndarray     # T x 17 x 3 the H36M joints on the skeleton (what forward kinematics gives); 21 with feet
+    spec: tuple = BVH_JOINTS  # the hierarchy (BVH_JOINTS, or BVH_JOINTS_FEET)
+
+
+# (ankle, foot point) of the feet, left and right paired: heels, then toe tips
+_FOOT_BONES = (((6, 17), (3, 18)), ((6, 19), (3, 20)))
+
+
+def _fit_feet(world_joints: np.ndarray, joints: np.ndarray) -> tuple[np.ndarray, dict[int, float]]:
+    """Heels and toe tips on the fitted ankles at constant lengths (median, left and right averaged),
+    directions kept: the 21 joints and each foot point's length."""
+    out = np.concatenate([joints, world_joints[:, 17:]], 1)
+    length_of = {}
+    for pair in _FOOT_BONES:
+        length = float(np.mean([np.median(np.linalg.norm(world_joints[:, p] - world_joints[:, a], axis=-1))
+                                for a, p in pair]))
+        for ankle, point in pair:
+            out[:, point] = out[:, ankle] + length * unit(world_joints[:, point] - world_joints[:, ankle])
+            length_of[point] = length
+    return out, length_of
 
 
 def solve_rotations(world_joints: np.ndarray) -> SkeletonMotion:
-    """Constant bone lengths, then per-joint rotations, for world-frame H36M joints (T x 17 x 3)."""
-    lengths = fit_skeleton(world_joints)
-    joints = apply_skeleton(world_joints, lengths)
+    """Constant bone lengths, then per-joint rotations, for world-frame H36M joints (T x 17 x 3, or
+    21 with the heels and toe tips after them)."""
+    lengths = fit_skeleton(world_joints[:, :17])
+    joints = apply_skeleton(world_joints[:, :17], lengths)
     length_of = {child: lengths[k] for k, (_, child) in enumerate(H36M_BONES)}
+    specs = BVH_JOINTS
+    if world_joints.shape[1] == 21:
+        joints, foot_lengths = _fit_feet(world_joints, joints)
+        length_of.update(foot_lengths)
+        specs = BVH_JOINTS_FEET
     frames = len(joints)
     offsets = np.array([spec.rest * length_of.get(spec.h36m, 0.0) if spec.h36m is not None else np.zeros(3)
-                        for spec in BVH_JOINTS])
-    position = np.zeros((frames, len(BVH_JOINTS), 3))
-    glob = np.zeros((frames, len(BVH_JOINTS), 3, 3))
-    children = {i: [k for k, s in enumerate(BVH_JOINTS) if s.parent == i] for i in range(len(BVH_JOINTS))}
-    for i, spec in enumerate(BVH_JOINTS):
+                        for spec in specs])
+    position = np.zeros((frames, len(specs), 3))
+    glob = np.zeros((frames, len(specs), 3, 3))
+    children = {i: [k for k, s in enumerate(specs) if s.parent == i] for i in range(len(specs))}
+    for i, spec in enumerate(specs):
         position[:, i] = joints[:, spec.h36m] if spec.h36m is not None else position[:, spec.parent]
         parent_rot = glob[:, spec.parent] if spec.parent >= 0 else np.broadcast_to(np.eye(3), (frames, 3, 3))
         if spec.name in _FRAMES:
             glob[:, i] = _frame(joints, *_FRAMES[spec.name])
         elif len(children[i]) == 1:
-            child = BVH_JOINTS[children[i][0]]
+            child = specs[children[i][0]]
             direction = unit(joints[:, child.h36m] - position[:, i])
             in_parent = np.einsum("tji,tj->ti", parent_rot, direction)
             glob[:, i] = parent_rot @ smallest_rotation(child.rest, in_parent)
         else:
             glob[:, i] = parent_rot
     local = glob.copy()
-    for i, spec in enumerate(BVH_JOINTS):
+    for i, spec in enumerate(specs):
         if spec.parent >= 0:
             local[:, i] = np.swapaxes(glob[:, spec.parent], -1, -2) @ glob[:, i]
-    return SkeletonMotion(offsets, joints[:, 0].copy(), local, joints)
+    return SkeletonMotion(offsets, joints[:, 0].copy(), local, joints, specs)
 
 
 def _num(v: float) -> str:
@@ -113,14 +146,18 @@ def write_bvh(path: Path, motion: SkeletonMotion, fps: float) -> None:
 
     lines = ["HIERARCHY"]
 
+    specs = motion.spec
+    order: list[int] = []  # joints in the file's (depth-first) order: the order of the MOTION channels
+
     def emit(i: int, depth: int) -> None:
-        spec, pad = BVH_JOINTS[i], "  " * depth
+        order.append(i)
+        spec, pad = specs[i], "  " * depth
         lines.append(f"{pad}{'ROOT' if spec.parent < 0 else 'JOINT'} {spec.name}")
         lines.append(f"{pad}{{")
         lines.append(f"{pad}  OFFSET {' '.join(_num(v) for v in motion.offsets[i])}")
         channels = "6 Xposition Yposition Zposition" if spec.parent < 0 else "3"
         lines.append(f"{pad}  CHANNELS {channels} Zrotation Xrotation Yrotation")
-        kids = [k for k, s in enumerate(BVH_JOINTS) if s.parent == i]
+        kids = [k for k, s in enumerate(specs) if s.parent == i]
         for k in kids:
             emit(k, depth + 1)
         if not kids:
@@ -132,8 +169,8 @@ def write_bvh(path: Path, motion: SkeletonMotion, fps: float) -> None:
     emit(0, 0)
     frames = len(motion.root)
     euler = Rotation.from_matrix(motion.local.reshape(-1, 3, 3)).as_euler("ZXY", degrees=True).reshape(
-        frames, len(BVH_JOINTS), 3)
-    values = np.concatenate([motion.root, euler.reshape(frames, -1)], axis=1)
+        frames, len(specs), 3)
+    values = np.concatenate([motion.root, euler[:, order].reshape(frames, -1)], axis=1)
     lines += ["MOTION", f"Frames: {frames}", f"Frame Time: {1.0 / fps:.8f}"]
     lines += [" ".join(_num(v) for v in row) for row in values]
     with atomic_path(Path(path)) as tmp:
@@ -141,13 +178,14 @@ def write_bvh(path: Path, motion: SkeletonMotion, fps: float) -> None:
 
 
 def read_back(path: Path) -> np.ndarray:
-    """The H36M joints (T x 17 x 3) of a BVH written by ``write_bvh``, by forward kinematics."""
+    """The H36M joints (T x 17 x 3, or 21 with feet) of a BVH written by ``write_bvh``, by forward kinematics."""
     from pipeline.motion.mocap.bvh import forward_kinematics, read_bvh
 
     bvh = read_bvh(path)
     positions, _, _ = forward_kinematics(bvh, "replace")
-    out = np.zeros((len(positions), 17, 3))
-    for spec in BVH_JOINTS:
+    specs = BVH_JOINTS_FEET if any(j.name == "LeftHeel" for j in bvh.joints) else BVH_JOINTS
+    out = np.zeros((len(positions), 21 if specs is BVH_JOINTS_FEET else 17, 3))
+    for spec in specs:
         if spec.h36m is not None:
             out[:, spec.h36m] = positions[:, bvh.index(spec.name)]
     return out

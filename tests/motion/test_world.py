@@ -72,6 +72,34 @@ def test_bvh_round_trip_gives_the_joints_back_within_a_millimetre(dance: np.ndar
     assert np.linalg.norm(motion.joints - world, axis=-1).mean() < 0.01
 
 
+def test_bvh_with_feet_gives_heels_and_toes_back_on_constant_lengths(mocap_dir: Path, tmp_path: Path) -> None:
+    seq = load_source(mocap_dir, "dancedb_ucy")[0]
+    everything = np.concatenate([seq.h36m, seq.feet], 1)[::2]
+    cam, _ = _pitched_view(everything, 10.0)
+    world, _ = to_world(cam)
+    motion = solve_rotations(world)
+    assert {"LeftHeel", "RightHeel", "LeftToe", "RightToe"} <= {j.name for j in motion.spec}
+    write_bvh(tmp_path / "feet.bvh", motion, 24.0)
+    back = read_back(tmp_path / "feet.bvh")
+    assert back.shape == (len(world), 21, 3) and np.abs(back - motion.joints).max() < 1e-3
+    heel = np.linalg.norm(back[:, 17] - back[:, 6], axis=-1)
+    assert np.ptp(heel) < 1e-3  # one skeleton: the heel keeps its length
+    # The body is fitted as without feet, and the feet move by millimetres on real capture.
+    np.testing.assert_allclose(motion.joints[:, :17], solve_rotations(world[:, :17]).joints)
+    assert np.linalg.norm(motion.joints[:, 17:] - world[:, 17:], axis=-1).mean() < 0.02
+    # `dance3d export bvh` writes them for a motion file whose lifter gave feet.
+    from pipeline.motion.motionfile import MotionClip, write_motion
+
+    n = len(cam)
+    clip = MotionClip("vid_000_1_0", 1, np.arange(n, dtype=np.int32), np.arange(n) / 24.0,
+                      cam[:, :17].astype(np.float32), np.zeros(n, bool), np.zeros(n, np.int8),
+                      feet=(cam[:, 17:] - cam[:, :1]).astype(np.float32))
+    write_motion(tmp_path / "vid_000.parquet", [clip], {"segment_id": "vid_000", "fps": 24.0, "width": 1920,
+                                                        "height": 1080}, fingerprint="x", params={}, inputs={})
+    assert main(["export", "bvh", str(tmp_path / "vid_000.parquet"), "vid_000_1_0", str(tmp_path / "cli.bvh")]) == 0
+    assert read_back(tmp_path / "cli.bvh").shape == (n, 21, 3)
+
+
 def test_export_bvh_writes_one_clip_of_a_motion_file(dance: np.ndarray, tmp_path: Path, capsys) -> None:
     from pipeline.motion.motionfile import MotionClip, write_motion
 
