@@ -21,7 +21,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from pipeline.motion.bones import apply_skeleton, fit_skeleton
-from pipeline.motion.mocap.skeleton import H36M_BONES, smallest_rotation, unit
+from pipeline.motion.mocap.skeleton import FEET_ANKLES_H36M, H36M_BONES, smallest_rotation, unit
 
 _X, _Y = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
 
@@ -82,19 +82,16 @@ class SkeletonMotion:
     spec: tuple = BVH_JOINTS  # the hierarchy (BVH_JOINTS, or BVH_JOINTS_FEET)
 
 
-# (ankle, foot point) of the feet, left and right paired: heels, then toe tips
-_FOOT_BONES = (((6, 17), (3, 18)), ((6, 19), (3, 20)))
-
-
 def _fit_feet(world_joints: np.ndarray, joints: np.ndarray) -> tuple[np.ndarray, dict[int, float]]:
     """Heels and toe tips on the fitted ankles at constant lengths (median, left and right averaged),
     directions kept: the 21 joints and each foot point's length."""
     out = np.concatenate([joints, world_joints[:, 17:]], 1)
     length_of = {}
-    for pair in _FOOT_BONES:
+    for pair in ((0, 1), (2, 3)):  # heels, then toe tips (skeleton.FEET): left and right share a length
+        bones = [(FEET_ANKLES_H36M[k], 17 + k) for k in pair]
         length = float(np.mean([np.median(np.linalg.norm(world_joints[:, p] - world_joints[:, a], axis=-1))
-                                for a, p in pair]))
-        for ankle, point in pair:
+                                for a, p in bones]))
+        for ankle, point in bones:
             out[:, point] = out[:, ankle] + length * unit(world_joints[:, point] - world_joints[:, ankle])
             length_of[point] = length
     return out, length_of

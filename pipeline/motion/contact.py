@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from pipeline.motion.mocap.skeleton import FEET_ANKLES_H36M
 from pipeline.motion.world import ANKLE_HEIGHT, FOOT_POINT_HEIGHT
 
 ANKLES = (6, 3)                      # H36M left ankle, right ankle
@@ -100,7 +101,5 @@ def pin_feet(world: np.ndarray, contact: np.ndarray, ease: int = 3) -> np.ndarra
 
 def carry_feet(feet: np.ndarray, before: np.ndarray, after: np.ndarray) -> np.ndarray:
     """Heels and toes (T x 4 x 3) moved with their ankles from the joints ``before`` to ``after``."""
-    out = feet.copy()
-    for side, points in enumerate(FOOT_POINTS):
-        out[:, list(points)] += (after[:, ANKLES[side]] - before[:, ANKLES[side]])[:, None]
-    return out
+    ankles = list(FEET_ANKLES_H36M)
+    return feet + (after[:, ankles] - before[:, ankles])

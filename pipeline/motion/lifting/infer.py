@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.motion.lifting.geometry import normalise
-from pipeline.motion.mocap.skeleton import COCO21_FLIP, COCO_FLIP, H36M21_FLIP, H36M_FLIP
+from pipeline.motion.mocap.skeleton import COCO21_FLIP, COCO_FLIP, FEET_ANKLES_COCO, H36M21_FLIP, H36M_FLIP
 
 # ONNX metadata values of the joint sets (export_onnx writes them)
 JOINTS_IN = {False: "coco17", True: "coco17+feet"}
@@ -101,7 +101,7 @@ def with_feet(keypoints: np.ndarray, feet: np.ndarray) -> np.ndarray:
     the pose model never saw in the clip (a model without feet gives score 0) stands at its
     ankle, scored 0: the lifter gets a foot of no length rather than the image's corner."""
     feet = feet.astype(np.float64).copy()
-    for k, ankle in enumerate((15, 16, 15, 16)):  # left heel, right heel, left toe, right toe
+    for k, ankle in enumerate(FEET_ANKLES_COCO):
         if not (feet[:, k, 2] > 0).any():
             feet[:, k, :2], feet[:, k, 2] = keypoints[:, ankle, :2], 0.0
     return np.concatenate([keypoints.astype(np.float64), feet], 1)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from pipeline.pose.models.pose import FEET
+
 H36M17 = ("pelvis", "right_hip", "right_knee", "right_ankle", "left_hip", "left_knee", "left_ankle", "spine",
           "thorax", "neck_nose", "head", "left_shoulder", "left_elbow", "left_wrist", "right_shoulder",
           "right_elbow", "right_wrist")
@@ -21,10 +23,11 @@ COCO_H36M_SHARED = ((5, 11), (6, 14), (7, 12), (8, 15), (9, 13), (10, 16), (11, 
 WORLD_UP = np.array([0.0, 1.0, 0.0])
 
 # The feet, appended after the 17 body joints in 2D (COCO-17 + 4) and 3D (H36M-17 + 4), in the
-# 2D stage's order (pipeline.pose.models.pose.FEET). The toe is the tip of the toes, BlazePose's
-# "foot index".
-FEET = ("left_heel", "right_heel", "left_toe", "right_toe")
+# 2D stage's order (FEET: left heel, right heel, left toe, right toe). The toe is the tip of the
+# toes, BlazePose's "foot index".
 FEET_FLIP = (1, 0, 3, 2)
+FEET_ANKLES_H36M = (6, 3, 6, 3)     # the ankle of each foot point, in H36M-17
+FEET_ANKLES_COCO = (15, 16, 15, 16)  # ... in COCO-17
 H36M21 = H36M17 + FEET
 # Each foot drawn as a triangle: ankle-heel, ankle-toe, heel-toe (indices into the 21 joints).
 FOOT_BONES = ((6, 17), (6, 19), (17, 19), (3, 18), (3, 20), (18, 20))

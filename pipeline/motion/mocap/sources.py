@@ -131,6 +131,7 @@ def _rig_feet(bvh: Bvh, source: BvhSource, positions: np.ndarray, rotations: np.
 
     sides = [(bvh.index(source.joints[6]), toe(source.toes[0])), (bvh.index(source.joints[3]), toe(source.toes[1]))]
     floor = floor_height(np.stack([t for _, t in sides]))
+    sole = sole_height(floor, size)
     heels, tips = [], []
     for (a, toe_point), spec in zip(sides, source.toes):
         ankle = positions[:, a]
@@ -138,7 +139,6 @@ def _rig_feet(bvh: Bvh, source: BvhSource, positions: np.ndarray, rotations: np.
         if flat.sum() < 3:
             flat = ankle[:, 1] <= np.percentile(ankle[:, 1], 10)
         forward = unit((toe_point - ankle) * [1.0, 0.0, 1.0])[flat]
-        sole = sole_height(floor, size)
 
         def ride(points: np.ndarray, joint: int) -> np.ndarray:
             """Points placed in the flat frames -> the same points in every frame, carried by ``joint``."""
@@ -181,7 +181,7 @@ def load_deepmimic(path: Path) -> MocapSequence:
 
     root_pos, root_q = take(3), _quat(take(4))
     chest_q, neck_q = _quat(take(4)), _quat(take(4))
-    # Ankle rotations only turn the feet, which H36M-17 does not have: read past them.
+    # Ankle rotations turn the foot boxes, whose sole ends are the heels and toe tips.
     r_hip_q, r_knee, r_ankle_q, r_sh_q, r_elbow = _quat(take(4)), take(1), _quat(take(4)), _quat(take(4)), take(1)
     l_hip_q, l_knee, l_ankle_q, l_sh_q, l_elbow = _quat(take(4)), take(1), _quat(take(4)), _quat(take(4)), take(1)
 
