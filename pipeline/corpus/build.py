@@ -179,11 +179,11 @@ def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, para
     clip_minutes: dict[str, float] = {}
     clip_seconds: list[float] = []
     for f in item_files(root / CLEAN):
-        fps = read_meta(f)["fps"]
+        source_fps = read_meta(f)["fps"]  # the clean file's own (source) rate, not the corpus's
         frames_per_clip = clip_frame_counts(f)
         video = video_of(f.stem)
-        clip_minutes[video] = clip_minutes.get(video, 0.0) + sum(frames_per_clip.values()) / fps / 60
-        clip_seconds.extend(n / fps for n in frames_per_clip.values())
+        clip_minutes[video] = clip_minutes.get(video, 0.0) + sum(frames_per_clip.values()) / source_fps / 60
+        clip_seconds.extend(n / source_fps for n in frames_per_clip.values())
     metas = [w.meta for w in windows]
     stats = channel_stats(ledger, segments, track_ids, clip_minutes, metas)
     n_train = sum(1 for m in metas if m["split"] == "train")

@@ -189,3 +189,24 @@ def test_the_seed_profile_builds_the_seed_model_and_it_learns_causally() -> None
     loss = next_frame_loss(model, motion, torch.randn(2, 20, 27))
     loss.backward()
     assert torch.isfinite(loss) and model.coord_embedding.weight.grad.abs().sum() > 0
+
+
+def test_the_card_and_metrics_use_the_corpus_rate_not_a_clean_files_source_rate(tmp_path: Path) -> None:
+    """A 60 fps source video must not change what the card says of 24 fps, 8 s windows."""
+    import pyarrow as pa
+
+    from pipeline.core.paths import CLEAN, CORPUS
+    from pipeline.core.storage import write_parquet
+    from pipeline.corpus.build import write_card_and_metrics
+
+    (tmp_path / CLEAN).mkdir(parents=True)
+    write_parquet(pa.table({"clip_id": ["v_000_1_0"] * 600}), tmp_path / CLEAN / "v_000.parquet",
+                  schema_version=2, extra={"fps": 60.0})
+    windows = synthetic_windows(n_videos=1, clips=1, per_clip=1, frames=192)
+    for w in windows:
+        w.meta.update(beat_frames=[], motion_beat_frames=[], beat_align_score=float("nan"))
+    counts = {"clips": 1, "clips_without_audio": 0, "clips_too_short": 0}
+    write_card_and_metrics(tmp_path, windows, counts, {}, window=192, hop=96, fps=24.0)
+    card = (tmp_path / CORPUS / "README.md").read_text()
+    assert "exactly 24 fps" in card and "60 fps" not in card
+    assert "(0.1 minutes of distinct motion)" in card  # 192 frames at 24 fps, not at 60
