@@ -84,6 +84,7 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     alignment = corpus["beat_alignment"]  # matched and shuffled music, on the demo's windows
     assert alignment["windows"] == windows and 0 <= alignment["matched_beat_align_score"] <= 1
     assert 0 <= alignment["shuffled_beat_align_score"] <= 1
+    assert 0 <= alignment["half_beat_beat_align_score"] <= 1
     assert "## Motion–music alignment" in (root / "data/corpus/README.md").read_text()
     # World-grounded columns: y up, the floor under the feet, one skeleton, rotations; any reader finds the splits.
     world = pq.read_table(shards[0], columns=["world_joints", "root", "contact", "rotations_6d", "bone_lengths",

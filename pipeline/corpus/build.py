@@ -27,7 +27,7 @@ from pipeline.ingest.catalog import read_index, read_ledger
 from pipeline.motion.grounding import ROTATION_JOINTS, ground_clip
 from pipeline.motion.mocap.skeleton import H36M17, H36M_BONES
 from pipeline.motion.motionfile import clip_frame_counts, read_motion
-from pipeline.music.alignment import beat_align_score, beat_f1, kinematic_beats, shuffled_pairs
+from pipeline.music.alignment import beat_align_score, beat_f1, half_beat_later, kinematic_beats, shuffled_pairs
 from pipeline.music.featurefile import FeatureFile, read_features
 from pipeline.pose.trackfile import read_tracks
 
@@ -118,29 +118,31 @@ def grounding_summary(clips: list[dict]) -> dict:
 
 
 def alignment_summary(windows: list[Window], fps: float, seed: int = 0) -> dict:
-    """Beat alignment of every window with its own music and with another video's (shuffled)."""
+    """Beat alignment of every window with its own music and with two controls: another video's
+    music (shuffled) and its own music half a beat late (which holds for covers of one song too)."""
     if not windows:
         return {"windows": 0}
     partners = shuffled_pairs([w.meta["video_id"] for w in windows], seed)
-    matched = {"bas": [], "f1": []}
-    shuffled = {"bas": [], "f1": []}
+    scores = {name: {"bas": [], "f1": []} for name in ("matched", "shuffled", "half_beat")}
     for w, j in zip(windows, partners):
-        # Both from frame indices (not the windows' exact-time scores), so matched and shuffled
+        # All from frame indices (not the windows' exact-time scores), so matched and control
         # music beats have the same precision and only the pairing differs.
         motion = np.asarray(w.meta["motion_beat_frames"], float) / fps
-        for scores, music in ((matched, w.meta["beat_frames"]), (shuffled, windows[j].meta["beat_frames"])):
-            beats = np.asarray(music, float) / fps
-            scores["bas"].append(beat_align_score(beats, motion))
-            scores["f1"].append(beat_f1(beats, motion, fps))
+        own = np.asarray(w.meta["beat_frames"], float)
+        for name, music in (("matched", own), ("shuffled", np.asarray(windows[j].meta["beat_frames"], float)),
+                            ("half_beat", half_beat_later(own))):
+            scores[name]["bas"].append(beat_align_score(music / fps, motion))
+            scores[name]["f1"].append(beat_f1(music / fps, motion, fps))
 
     def mean(values: list[float]) -> float:
         good = [v for v in values if v == v]
         return round(float(np.mean(good)), 4) if good else float("nan")
 
-    return {"windows": len(windows), "matched_beat_align_score": mean(matched["bas"]),
-            "shuffled_beat_align_score": mean(shuffled["bas"]), "matched_beat_f1": mean(matched["f1"]),
-            "shuffled_beat_f1": mean(shuffled["f1"]),
-            "shuffle": "each window's motion beats against the music beats of a window of another video (seeded)"}
+    figures = {f"{name}_{key}": mean(scores[name][short]) for name in scores
+               for key, short in (("beat_align_score", "bas"), ("beat_f1", "f1"))}
+    return {"windows": len(windows), **figures,
+            "shuffle": "each window's motion beats against the music beats of a window of another video (seeded)",
+            "half_beat": "each window's motion beats against its own music beats moved half a beat later"}
 
 
 def write_shards(root: Path, windows: list[Window], window: int, per_shard: int, row_group: int,

@@ -210,3 +210,18 @@ def test_the_card_and_metrics_use_the_corpus_rate_not_a_clean_files_source_rate(
     card = (tmp_path / CORPUS / "README.md").read_text()
     assert "exactly 24 fps" in card and "60 fps" not in card
     assert "(0.1 minutes of distinct motion)" in card  # 192 frames at 24 fps, not at 60
+
+
+def test_the_half_beat_control_holds_on_covers_where_shuffled_music_does_not() -> None:
+    """Three covers of one song: another video's music is the same music, so a shuffled control
+    scores like the matched pairs; the window's own music shifted by half a beat does not."""
+    from pipeline.corpus.build import alignment_summary
+
+    beats = list(range(6, 192, 12))  # 120 BPM at 24 fps
+    windows = synthetic_windows(n_videos=3, clips=1, per_clip=1, frames=192)
+    for w in windows:
+        w.meta.update(beat_frames=beats, motion_beat_frames=[b + 1 for b in beats])
+    summary = alignment_summary(windows, 24.0)
+    assert summary["shuffled_beat_align_score"] == summary["matched_beat_align_score"] > 0.7
+    assert summary["half_beat_beat_align_score"] < 0.1
+    assert summary["half_beat_beat_f1"] < 0.1 < summary["matched_beat_f1"]
