@@ -446,7 +446,7 @@ def _render(root: Path, args: argparse.Namespace) -> int:
     fps = float(meta.get("fps", 24.0))
     audio = root / AUDIO / f"{meta.get('segment_id', '')}.flac"  # the segment's normalised audio
     if args.world:
-        from pipeline.motion.grounding import ground_clip
+        from pipeline.motion.world.grounding import ground_clip
 
         grounded = ground_clip(clip.joints, clip.root, fps, clip.feet)
         world = grounded.joints if grounded.feet is None else np.concatenate([grounded.joints, grounded.feet], 1)
@@ -462,9 +462,9 @@ def _export_bvh(args: argparse.Namespace) -> int:
     import numpy as np
 
     from pipeline.core.storage import read_meta
-    from pipeline.motion.bones import bone_length_cv
+    from pipeline.motion.world.bones import bone_length_cv
     from pipeline.motion.bvh_export import solve_rotations, write_bvh
-    from pipeline.motion.world import to_world
+    from pipeline.motion.world.gravity import to_world
 
     clip = _clip_of(args.motion, args.clip_id)
     if clip is None:

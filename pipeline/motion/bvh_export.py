@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from pipeline.motion.bones import apply_skeleton, fit_skeleton
+from pipeline.motion.world.bones import apply_skeleton, fit_skeleton
 from pipeline.motion.mocap.skeleton import FEET_ANKLES_H36M, H36M_BONES, smallest_rotation, unit
 
 _X, _Y = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])

@@ -5,7 +5,7 @@ joints (H36M-17 x (x, y, z), metres, root-relative, camera frame: x right, y dow
 z away from the camera), interpolated (the 2D pose of that frame was filled in by clean),
 filled_joints (how many 2D joints were filled because their confidence was low), root (the
 root's position in the camera frame, metres, from the pose and its 2D keypoints with a
-focal length assumed from the frame size: pipeline/motion/trajectory.py; schema 2), feet
+focal length assumed from the frame size: pipeline/motion/world/trajectory.py; schema 2), feet
 (left heel, right heel, left toe tip, right toe tip x (x, y, z), root-relative like joints;
 NaN when the lifter has no feet; schema 3).
 """

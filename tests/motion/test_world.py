@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from pipeline.cli import main
-from pipeline.motion.bones import apply_skeleton, bone_length_cv, fit_skeleton
+from pipeline.motion.world.bones import apply_skeleton, bone_length_cv, fit_skeleton
 from pipeline.motion.bvh_export import read_back, solve_rotations, write_bvh
 from pipeline.motion.lifting.geometry import look_at, to_camera
 from pipeline.motion.mocap.sources import load_source
-from pipeline.motion.world import ANKLE_HEIGHT, to_world, up_error_deg
+from pipeline.motion.world.gravity import ANKLE_HEIGHT, to_world, up_error_deg
 
 
 def _pitched_view(h36m: np.ndarray, pitch_deg: float) -> tuple[np.ndarray, np.ndarray]:
@@ -121,7 +121,7 @@ def test_export_bvh_writes_one_clip_of_a_motion_file(dance: np.ndarray, tmp_path
 def test_the_root_path_is_where_the_pose_projects(dance: np.ndarray) -> None:
     from pipeline.motion.lifting.evaluate import PROTOCOL_CAMERAS, view
     from pipeline.motion.mocap.skeleton import coco_from_h36m
-    from pipeline.motion.trajectory import align_scale_offset, root_from_2d
+    from pipeline.motion.world.trajectory import align_scale_offset, root_from_2d
 
     camera = PROTOCOL_CAMERAS[1]
     xy, joints = view(dance, coco_from_h36m(dance), camera)
@@ -135,7 +135,7 @@ def test_the_root_path_is_where_the_pose_projects(dance: np.ndarray) -> None:
 
 
 def test_pinned_feet_stop_sliding_and_keep_the_legs(dance: np.ndarray) -> None:
-    from pipeline.motion.contact import foot_contact, pin_feet, skating
+    from pipeline.motion.world.contact import foot_contact, pin_feet, skating
 
     fps = 15.0  # the fixture keeps every second frame of 30 fps capture
     world, _ = to_world(dance - dance[:, :1], root=dance[:, 0] - dance[0, 0])
@@ -172,9 +172,9 @@ def test_render_world_draws_the_grounded_clip(dance: np.ndarray, tmp_path: Path)
 
 
 def test_with_heels_and_toes_the_floor_is_under_the_feet_and_a_foot_on_its_ball_stands(mocap_dir: Path) -> None:
-    from pipeline.motion.contact import foot_contact
-    from pipeline.motion.grounding import ground_clip
-    from pipeline.motion.world import FOOT_POINT_HEIGHT
+    from pipeline.motion.world.contact import foot_contact
+    from pipeline.motion.world.grounding import ground_clip
+    from pipeline.motion.world.gravity import FOOT_POINT_HEIGHT
 
     seq = load_source(mocap_dir, "dancedb_ucy")[0]
     fps = seq.fps / 2

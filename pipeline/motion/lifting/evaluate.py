@@ -33,7 +33,7 @@ import numpy as np
 from pipeline.core.errors import InputError
 from pipeline.motion.lifting.geometry import look_at, mpjpe, p_mpjpe, project, to_camera
 from pipeline.motion.mocap.sources import MocapSequence, first_seconds, keypoints_and_joints, resample
-from pipeline.motion.trajectory import assumed_focal
+from pipeline.motion.world.trajectory import assumed_focal
 from pipeline.pose.tracking import COCO_SIGMAS
 
 # The held-out sequences of the shared motion capture (name prefixes): whole performers where

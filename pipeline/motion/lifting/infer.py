@@ -131,7 +131,7 @@ def lift_segment(lifter: Lifter, job: LiftJob) -> dict:
     """All clips of a segment in one ONNX call; writes the segment's 3D motion table."""
     from pipeline.annotate.clipfile import read_clean
     from pipeline.motion.motionfile import MotionClip, write_motion
-    from pipeline.motion.trajectory import assumed_focal, root_from_2d
+    from pipeline.motion.world.trajectory import assumed_focal, root_from_2d
 
     clean = read_clean(job.clean)
     width, height = clean.segment.width, clean.segment.height

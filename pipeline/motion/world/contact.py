@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from pipeline.motion.mocap.skeleton import FEET_ANKLES_H36M
-from pipeline.motion.world import ANKLE_HEIGHT, FOOT_POINT_HEIGHT
+from pipeline.motion.world.gravity import ANKLE_HEIGHT, FOOT_POINT_HEIGHT
 
 ANKLES = (6, 3)                      # H36M left ankle, right ankle
 LEGS = ((4, 5, 6), (1, 2, 3))        # hip, knee, ankle: left, right
