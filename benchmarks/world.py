@@ -32,14 +32,14 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.motion.world.bones import apply_skeleton, bone_length_cv, fit_skeleton
-from pipeline.motion.world.contact import carry_feet, foot_contact, pin_feet, skating
 from pipeline.motion.lifting.evaluate import Camera, add_pose_noise, camera_pose, split, view
 from pipeline.motion.lifting.infer import load_lifter
 from pipeline.motion.mocap.sources import first_seconds, keypoints_and_joints, load_folder, resample
 from pipeline.motion.smoothing import hp_trend
-from pipeline.motion.world.trajectory import align_scale_offset, assumed_focal, root_from_2d
+from pipeline.motion.world.bones import apply_skeleton, bone_length_cv, fit_skeleton
+from pipeline.motion.world.contact import carry_feet, foot_contact, pin_feet, skating
 from pipeline.motion.world.gravity import to_world, up_error_deg
+from pipeline.motion.world.trajectory import align_scale_offset, assumed_focal, root_from_2d
 
 WIDTH, HEIGHT, FPS = 1080, 1920, 25.0
 PITCHES = (-20.0, -10.0, 0.0, 10.0, 20.0)

@@ -462,8 +462,8 @@ def _export_bvh(args: argparse.Namespace) -> int:
     import numpy as np
 
     from pipeline.core.storage import read_meta
-    from pipeline.motion.world.bones import bone_length_cv
     from pipeline.motion.bvh_export import solve_rotations, write_bvh
+    from pipeline.motion.world.bones import bone_length_cv
     from pipeline.motion.world.gravity import to_world
 
     clip = _clip_of(args.motion, args.clip_id)

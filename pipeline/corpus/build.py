@@ -24,9 +24,9 @@ from pipeline.corpus.card import (
 )
 from pipeline.corpus.windows import FPS, SCHEMA_VERSION, Window, split_of, window_starts, windows_table
 from pipeline.ingest.catalog import read_index, read_ledger
-from pipeline.motion.world.grounding import ROTATION_JOINTS, ground_clip
 from pipeline.motion.mocap.skeleton import H36M17, H36M_BONES
 from pipeline.motion.motionfile import clip_frame_counts, read_motion
+from pipeline.motion.world.grounding import ROTATION_JOINTS, ground_clip
 from pipeline.music.alignment import beat_align_score, beat_f1, half_beat_later, kinematic_beats, shuffled_pairs
 from pipeline.music.featurefile import FeatureFile, read_features
 from pipeline.pose.trackfile import read_tracks

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from pipeline.cli import main
-from pipeline.motion.world.bones import apply_skeleton, bone_length_cv, fit_skeleton
 from pipeline.motion.bvh_export import read_back, solve_rotations, write_bvh
 from pipeline.motion.lifting.geometry import look_at, to_camera
 from pipeline.motion.mocap.sources import load_source
+from pipeline.motion.world.bones import apply_skeleton, bone_length_cv, fit_skeleton
 from pipeline.motion.world.gravity import ANKLE_HEIGHT, to_world, up_error_deg
 
 
@@ -173,8 +173,8 @@ def test_render_world_draws_the_grounded_clip(dance: np.ndarray, tmp_path: Path)
 
 def test_with_heels_and_toes_the_floor_is_under_the_feet_and_a_foot_on_its_ball_stands(mocap_dir: Path) -> None:
     from pipeline.motion.world.contact import foot_contact
-    from pipeline.motion.world.grounding import ground_clip
     from pipeline.motion.world.gravity import FOOT_POINT_HEIGHT
+    from pipeline.motion.world.grounding import ground_clip
 
     seq = load_source(mocap_dir, "dancedb_ucy")[0]
     fps = seq.fps / 2

@@ -23,8 +23,18 @@ from scipy.spatial.transform import Rotation
 from pipeline.core.errors import InputError
 from pipeline.motion.mocap.bvh import Bvh, forward_kinematics, read_bvh
 from pipeline.motion.mocap.markers import feet_from_markers, h36m_from_markers, read_c3d
-from pipeline.motion.mocap.skeleton import (FOOT_TEMPLATE, coco_from_h36m, feet_array, floor_height, foot_points,
-                                            head_frame, leg_stature, sole_height, stature, unit)
+from pipeline.motion.mocap.skeleton import (
+    FOOT_TEMPLATE,
+    coco_from_h36m,
+    feet_array,
+    floor_height,
+    foot_points,
+    head_frame,
+    leg_stature,
+    sole_height,
+    stature,
+    unit,
+)
 
 
 @dataclass

@@ -8,9 +8,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.motion.world.bones import apply_skeleton, bone_length_cv, fit_skeleton
-from pipeline.motion.bvh_export import BVH_JOINTS, solve_rotations
 from pipeline.motion.world.contact import carry_feet, foot_contact, pin_feet, skating
 from pipeline.motion.world.gravity import to_world
+from pipeline.motion.world.rotations import BVH_JOINTS, solve_rotations
 
 ROTATION_JOINTS = tuple(j.name for j in BVH_JOINTS)
 
