@@ -55,11 +55,22 @@ def _window(sources: tuple[np.ndarray, np.ndarray], length: int, speed: float,
     return coco[lo] * (1 - w) + coco[hi] * w, h36m[lo] * (1 - w) + h36m[hi] * w
 
 
-def make_pair(seq: MocapSequence, length: int, rng: np.random.Generator, opts: AugmentOptions,
-              augment: bool = True, input_norm: str = "screen", window: int = 27,
-              feet: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """One (2D input (length x 17 x 2), 3D target (length x 17 x 3)) pair (21 joints each with
-    ``feet``); ``window`` is the receptive field (the centred normalisation's scale filter)."""
+@dataclass(frozen=True)
+class Filmed:
+    """One window of motion capture as a virtual camera saw it."""
+    xy: np.ndarray        # length x J x 2 keypoints in pixels (augmented: jitter, pose noise, drops, swaps)
+    width: int
+    height: int
+    world: np.ndarray     # length x J x 3 the same keypoints in the world (y up), after scale and mirror
+    h36m_cam: np.ndarray  # length x J x 3 H36M joints (and feet) in the camera frame
+    scale: float          # body scale applied about ``centre``
+    centre: np.ndarray    # 3, the point the body was scaled (and mirrored) about
+
+
+def film(seq: MocapSequence, length: int, rng: np.random.Generator, opts: AugmentOptions,
+         augment: bool = True, feet: bool = False) -> Filmed:
+    """A random window of ``seq`` through a random camera: COCO-17 keypoints (21 with ``feet``) in
+    pixels, as a pose model would give them."""
     speed = rng.uniform(*opts.speed) if augment else 1.0
     span = (length - 1) * speed
     start = rng.uniform(0, max(0.0, seq.frames - 1 - span))
@@ -104,8 +115,17 @@ def make_pair(seq: MocapSequence, length: int, rng: np.random.Generator, opts: A
         dropped = rng.random(xy.shape[:2]) < opts.drop
         for t in range(1, length):
             xy[t, dropped[t]] = xy[t - 1, dropped[t]]
-    inputs = normalise(xy, width, height, input_norm, window).astype(np.float32)
-    targets = (h36m_cam - h36m_cam[:, :1]).astype(np.float32)
+    return Filmed(xy, width, height, coco, h36m_cam, scale, centre)
+
+
+def make_pair(seq: MocapSequence, length: int, rng: np.random.Generator, opts: AugmentOptions,
+              augment: bool = True, input_norm: str = "screen", window: int = 27,
+              feet: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """One (2D input (length x 17 x 2), 3D target (length x 17 x 3)) pair (21 joints each with
+    ``feet``); ``window`` is the receptive field (the centred normalisation's scale filter)."""
+    shot = film(seq, length, rng, opts, augment, feet)
+    inputs = normalise(shot.xy, shot.width, shot.height, input_norm, window).astype(np.float32)
+    targets = (shot.h36m_cam - shot.h36m_cam[:, :1]).astype(np.float32)
     return inputs, targets
 
 
