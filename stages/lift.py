@@ -6,16 +6,17 @@ import sys
 from pathlib import Path
 
 import pipeline.motion.lifting.infer
+import pipeline.motion.world.contact_model
 from pipeline.core.errors import ModelMissingError
 from pipeline.core.itemstage import WorkItem, run_item_stage
 from pipeline.core.params import load_params, stage_params
 from pipeline.core.paths import CLEAN, POSE3D
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta, sha256_file
-from pipeline.motion.lifting.infer import LiftJob, lift_segment, load_lifter
+from pipeline.motion.lifting.infer import LiftJob, lift_segment, load_models
 from pipeline.motion.motionfile import SCHEMA_VERSION
 
-CODE = code_fingerprint(pipeline.motion.lifting.infer)
+CODE = code_fingerprint(pipeline.motion.lifting.infer, pipeline.motion.world.contact_model)
 
 
 def run(root: Path) -> None:
@@ -24,17 +25,24 @@ def run(root: Path) -> None:
     if not model.exists():
         raise ModelMissingError(f"lifter {model} not found: run the train_lifter stage (dvc repro train_lifter) or "
                                 "convert the official weights with `dance3d models convert-videopose3d`")
+    contact = root / params["contact_model"] if params.get("contact_model") else None
+    if contact is not None and not contact.exists():
+        raise ModelMissingError(f"contact model {contact} not found: run the train_contact stage (dvc repro "
+                                "train_contact), or set lift.contact_model to '' for the ankle rule")
     model_hash = sha256_file(model)
+    contact_hash = sha256_file(contact) if contact is not None else ""
     items = []
     for clean_file in item_files(root / CLEAN):
-        inputs = {"clean": read_meta(clean_file).get("fingerprint", ""), "lifter": model_hash}
+        inputs = {"clean": read_meta(clean_file).get("fingerprint", ""), "lifter": model_hash,
+                  "contact_model": contact_hash}
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out = root / POSE3D / clean_file.name
         job = LiftJob(clean_file, out, float(params.get("min_score", 0.3)), bool(params.get("flip_tta", True)),
                       params, inputs, fp)
         items.append(WorkItem(clean_file.stem, fp, (out,), job))
     run_item_stage("lift", items, lift_segment, out_dirs=[root / POSE3D], params=params,
-                   setup=load_lifter, setup_args=(str(model), int(params.get("threads", 1))), gpu=True)
+                   setup=load_models, setup_args=(str(model), str(contact or ""), int(params.get("threads", 1))),
+                   gpu=True)
 
 
 def main() -> int:

@@ -7,7 +7,9 @@ filled_joints (how many 2D joints were filled because their confidence was low),
 root's position in the camera frame, metres, from the pose and its 2D keypoints with a
 focal length assumed from the frame size: pipeline/motion/world/trajectory.py; schema 2), feet
 (left heel, right heel, left toe tip, right toe tip x (x, y, z), root-relative like joints;
-NaN when the lifter has no feet; schema 3).
+NaN when the lifter has no feet; schema 3), contact (the probability that the left heel, right
+heel, left toe tip, right toe tip is planted, from the contact model: world/contact_model.py;
+NaN without one; schema 4).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import pyarrow.parquet as pq
 
 from pipeline.core.storage import column_array, fixed_list, read_meta, write_parquet
 
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 MOTION_SCHEMA = pa.schema(
     [
         ("clip_id", pa.string()),
@@ -34,6 +36,7 @@ MOTION_SCHEMA = pa.schema(
         ("filled_joints", pa.int8()),
         ("root", pa.list_(pa.float32(), 3)),
         ("feet", pa.list_(pa.float32(), 12)),
+        ("contact", pa.list_(pa.float32(), 4)),
     ]
 )
 
@@ -49,6 +52,7 @@ class MotionClip:
     filled_joints: np.ndarray  # n int
     root: np.ndarray | None = None  # n x 3 root path, camera frame, metres (None: not known)
     feet: np.ndarray | None = None  # n x 4 x 3 heels and toe tips, like joints (None: the lifter has none)
+    contact: np.ndarray | None = None  # n x 4 contact probabilities of the heels and toe tips (None: not known)
 
 
 def clips_to_table(clips: list[MotionClip]) -> pa.Table:
@@ -69,6 +73,8 @@ def clips_to_table(clips: list[MotionClip]) -> pa.Table:
         fixed_list(np.concatenate([c.root if c.root is not None else np.full((len(c.frame), 3), np.nan)
                                    for c in clips])),
         fixed_list(np.concatenate([c.feet.reshape(-1, 12) if c.feet is not None else np.full((len(c.frame), 12), np.nan)
+                                   for c in clips])),
+        fixed_list(np.concatenate([c.contact if c.contact is not None else np.full((len(c.frame), 4), np.nan)
                                    for c in clips])),
     ], schema=MOTION_SCHEMA)
 
@@ -114,11 +120,13 @@ def read_clips(path: Path) -> list[MotionClip]:
     filled = column_array(table, "filled_joints")
     root = column_array(table, "root", (3,)) if "root" in table.column_names else None
     feet = column_array(table, "feet", (4, 3)) if "feet" in table.column_names else None
+    contact = column_array(table, "contact", (4,)) if "contact" in table.column_names else None
     clips = []
     for clip_id in dict.fromkeys(ids):  # file order
         rows = np.flatnonzero(ids == clip_id)
         path = None if root is None or np.isnan(root[rows]).all() else root[rows]
         heels_toes = None if feet is None or np.isnan(feet[rows]).all() else feet[rows]
+        planted = None if contact is None or np.isnan(contact[rows]).all() else contact[rows]
         clips.append(MotionClip(clip_id, int(track[rows[0]]), frame[rows], time[rows], joints[rows],
-                                interp[rows], filled[rows], path, heels_toes))
+                                interp[rows], filled[rows], path, heels_toes, planted))
     return clips

@@ -49,20 +49,29 @@ class ResampleJob:
     fingerprint: str
 
 
+def resample_clip(clip, fps: float):
+    """A motion clip on the ``fps`` grid (None when no grid point falls inside it): cubic for the
+    motion, linear for the contact probabilities (a spline would overshoot 0 and 1)."""
+    from pipeline.motion.motionfile import MotionClip
+
+    frames, joints = resample_cubic(clip.time, clip.joints, fps)
+    if not len(frames):
+        return None
+    near = np.clip(np.searchsorted(clip.time, frames / fps), 0, len(clip.time) - 1)
+    root = None if clip.root is None else resample_cubic(clip.time, clip.root, fps)[1].astype(np.float32)
+    feet = None if clip.feet is None else resample_cubic(clip.time, clip.feet, fps)[1].astype(np.float32)
+    at = np.clip(frames / fps, clip.time[0], clip.time[-1])
+    contact = None if clip.contact is None else np.stack(
+        [np.interp(at, clip.time, clip.contact[:, k]) for k in range(clip.contact.shape[1])], -1).astype(np.float32)
+    return MotionClip(clip.clip_id, clip.track_id, frames, frames / fps, joints.astype(np.float32),
+                      clip.interpolated[near], clip.filled_joints[near], root, feet, contact)
+
+
 def resample_segment(job: ResampleJob) -> dict:
-    from pipeline.motion.motionfile import MotionClip, read_motion, write_motion
+    from pipeline.motion.motionfile import read_motion, write_motion
 
     motion = read_motion(job.smooth)
-    clips = []
-    for clip in motion.clips:
-        frames, joints = resample_cubic(clip.time, clip.joints, job.fps)
-        if not len(frames):
-            continue
-        near = np.clip(np.searchsorted(clip.time, frames / job.fps), 0, len(clip.time) - 1)
-        root = None if clip.root is None else resample_cubic(clip.time, clip.root, job.fps)[1].astype(np.float32)
-        feet = None if clip.feet is None else resample_cubic(clip.time, clip.feet, job.fps)[1].astype(np.float32)
-        clips.append(MotionClip(clip.clip_id, clip.track_id, frames, frames / job.fps, joints.astype(np.float32),
-                                clip.interpolated[near], clip.filled_joints[near], root, feet))
+    clips = [c for c in (resample_clip(clip, job.fps) for clip in motion.clips) if c is not None]
     segment = {"fps": job.fps, "source_fps": motion.meta.get("fps"),
                **{k: motion.meta.get(k) for k in ("segment_id", "width", "height")}}
     write_motion(job.out, clips, segment, fingerprint=job.fingerprint, params=job.params, inputs=job.inputs)

@@ -92,6 +92,15 @@ class SmoothJob:
     fingerprint: str
 
 
+def smooth_clip(clip, lamb: float):
+    """A motion clip HP-filtered: joints, root path and feet (contact probabilities pass unchanged)."""
+    trend = hp_trend(clip.joints.reshape(len(clip.joints), -1), lamb).reshape(clip.joints.shape)
+    root = None if clip.root is None else hp_trend(clip.root.astype(np.float64), lamb).astype(np.float32)
+    feet = None if clip.feet is None else hp_trend(clip.feet.reshape(len(clip.feet), -1).astype(np.float64),
+                                                  lamb).reshape(clip.feet.shape).astype(np.float32)
+    return replace(clip, joints=trend.astype(np.float32), root=root, feet=feet)
+
+
 def smooth_segment(job: SmoothJob) -> dict:
     """HP-filter every clip of a segment; per-clip QC (acceleration, limb-length CV) goes in the metadata."""
     from pipeline.motion.motionfile import read_motion, write_motion
@@ -100,16 +109,13 @@ def smooth_segment(job: SmoothJob) -> dict:
     motion = read_motion(job.pose3d)
     clips, qc = [], {}
     for clip in motion.clips:
-        trend = hp_trend(clip.joints.reshape(len(clip.joints), -1), job.lamb).reshape(clip.joints.shape)
-        root = None if clip.root is None else hp_trend(clip.root.astype(np.float64), job.lamb).astype(np.float32)
-        feet = None if clip.feet is None else hp_trend(clip.feet.reshape(len(clip.feet), -1).astype(np.float64),
-                                                      job.lamb).reshape(clip.feet.shape).astype(np.float32)
-        clips.append(replace(clip, joints=trend.astype(np.float32), root=root, feet=feet))
+        smoothed = smooth_clip(clip, job.lamb)
+        clips.append(smoothed)
         qc[clip.clip_id] = {
             "frames": int(len(clip.frame)),
             "mean_acc_before": round(mean_acceleration(clip.joints, motion.fps), 3),
-            "mean_acc_after": round(mean_acceleration(trend, motion.fps), 3),
-            "limb_cv": round(limb_length_cv(trend), 4),
+            "mean_acc_after": round(mean_acceleration(smoothed.joints, motion.fps), 3),
+            "limb_cv": round(limb_length_cv(smoothed.joints), 4),
             "interpolated_share": round(float(clip.interpolated.mean()), 4),
         }
     segment = {"clip_qc": qc, **{k: motion.meta.get(k) for k in ("segment_id", "fps", "width", "height")}}

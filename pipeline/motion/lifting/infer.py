@@ -110,6 +110,22 @@ def with_feet(keypoints: np.ndarray, feet: np.ndarray) -> np.ndarray:
 # --- the lift stage's worker -------------------------------------------------------------
 
 @dataclass(frozen=True)
+class LiftModels:
+    """What a lift worker loads once: the lifter, and the contact model (None: no learned contact)."""
+    lifter: Lifter
+    contact: object | None = None  # pipeline.motion.world.contact_model.ContactModel
+
+
+@dataclass(frozen=True)
+class LiftedClip:
+    joints: np.ndarray        # T x 17 x 3 root-relative, camera frame
+    feet: np.ndarray | None   # T x 4 x 3 like joints (None: the lifter has no feet)
+    root: np.ndarray          # T x 3 the per-frame root path, camera frame (trajectory.root_from_2d)
+    contact: np.ndarray | None  # T x 4 contact probabilities of the heels and toe tips (None: no contact model)
+    filled: np.ndarray        # T x 17 2D joints filled because their confidence was low
+
+
+@dataclass(frozen=True)
 class LiftJob:
     clean: Path
     out: Path
@@ -120,32 +136,54 @@ class LiftJob:
     fingerprint: str
 
 
+def load_models(lifter: str, contact: str = "", threads: int = 1) -> LiftModels:
+    """One worker's models, built once and reused for every segment it gets."""
+    from pipeline.motion.world.contact_model import load_contact_model
+
+    return LiftModels(load_lifter(lifter, threads), load_contact_model(Path(contact), threads) if contact else None)
+
+
 def load_lifter(path: str, threads: int = 1) -> Lifter:
-    """One worker's lifter, built once and reused for every segment it gets."""
     from pipeline.pose.models.session import create_session
 
     return Lifter.from_session(create_session(Path(path), threads))
 
 
-def lift_segment(lifter: Lifter, job: LiftJob) -> dict:
+def lift_clips(models: LiftModels, keypoints: list[np.ndarray], feet: list[np.ndarray | None], width: int,
+               height: int, fps: float, min_score: float, flip: bool) -> list[LiftedClip]:
+    """2D clips (T x 17 x 3 pixels and scores; heels and toes T x 4 x 3 or None) -> 3D, the root's
+    path and the contact probabilities: what the lift stage writes, and what ``dance3d eval world``
+    runs on filmed motion capture."""
+    from pipeline.motion.world.trajectory import assumed_focal, root_from_2d
+
+    if not keypoints:
+        return []
+    lifter = models.lifter
+    full = [with_feet(k, f if f is not None else np.zeros((len(k), 4, 3))) for k, f in zip(keypoints, feet)]
+    filled = [fill_low_confidence(k, min_score) for k in full]
+    inputs = [f[0] if lifter.feet else f[0][:, :17] for f in filled]
+    lifted = lifter.lift(inputs, width, height, flip=flip)
+    focal = assumed_focal(width, height)
+    out = []
+    for k, joints, (xy, mask) in zip(keypoints, lifted, filled):
+        root = root_from_2d(joints[:, :17], xy[:, :17], focal, width, height, scores=k[..., 2])
+        contact = None if models.contact is None else models.contact.probabilities(xy, fps, flip=flip)
+        out.append(LiftedClip(joints[:, :17], joints[:, 17:] if lifter.feet else None, root.astype(np.float32),
+                              contact, mask[:, :17]))
+    return out
+
+
+def lift_segment(models: LiftModels, job: LiftJob) -> dict:
     """All clips of a segment in one ONNX call; writes the segment's 3D motion table."""
     from pipeline.annotate.clipfile import read_clean
     from pipeline.motion.motionfile import MotionClip, write_motion
-    from pipeline.motion.world.trajectory import assumed_focal, root_from_2d
 
     clean = read_clean(job.clean)
-    width, height = clean.segment.width, clean.segment.height
-    inputs = [with_feet(c.keypoints, c.feet) if lifter.feet else c.keypoints for c in clean.clips]
-    filled = [fill_low_confidence(k, job.min_score) for k in inputs]
-    lifted = lifter.lift([f[0] for f in filled], width, height, flip=job.flip)
-    focal = assumed_focal(width, height)
-    roots = [root_from_2d(joints[:, :17], f[0][:, :17], focal, width, height,
-                          scores=c.keypoints[..., 2]).astype(np.float32)
-             for c, joints, f in zip(clean.clips, lifted, filled)]
-    clips = [MotionClip(c.clip_id, c.track_id, c.frame.astype(np.int32), clean.time(c), joints[:, :17],
-                        c.interpolated, f[1][:, :17].sum(1).astype(np.int8), root,
-                        joints[:, 17:] if lifter.feet else None)
-             for c, joints, f, root in zip(clean.clips, lifted, filled, roots)]
+    lifted = lift_clips(models, [c.keypoints for c in clean.clips], [c.feet for c in clean.clips],
+                        clean.segment.width, clean.segment.height, clean.segment.fps, job.min_score, job.flip)
+    clips = [MotionClip(c.clip_id, c.track_id, c.frame.astype(np.int32), clean.time(c), lc.joints,
+                        c.interpolated, lc.filled.sum(1).astype(np.int8), lc.root, lc.feet, lc.contact)
+             for c, lc in zip(clean.clips, lifted)]
     segment = {"segment_id": clean.segment.segment_id, "fps": clean.segment.fps, "width": clean.segment.width,
                "height": clean.segment.height}
     write_motion(job.out, clips, segment, fingerprint=job.fingerprint, params=job.params, inputs=job.inputs)
