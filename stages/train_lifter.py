@@ -9,10 +9,7 @@ needed. ``shipped: false`` trains with the chosen ``profile`` on real motion cap
 
 from __future__ import annotations
 
-import json
 import logging
-import os
-import shutil
 import sys
 from dataclasses import fields
 from pathlib import Path
@@ -21,7 +18,7 @@ from pipeline.core.errors import InputError
 from pipeline.core.params import load_params, stage_params, with_profile
 from pipeline.core.paths import LIFTER, METRICS
 from pipeline.core.stage import run_stage, setup_logging
-from pipeline.core.storage import atomic_path, write_json
+from pipeline.motion.shipped import copy_shipped, mocap_root, recorded_metrics, write_training_outputs
 
 log = logging.getLogger("dance3d.train_lifter")
 SHIPPED = Path(__file__).resolve().parents[1] / "pipeline/motion/lifting/weights/lifter_dance3d.onnx"
@@ -37,35 +34,16 @@ def config_from_params(params: dict):
     return LifterConfig(**values, augment=AugmentOptions(**augment))
 
 
-def mocap_root(root: Path, params: dict) -> Path:
-    configured = params.get("mocap") or os.environ.get("DANCE3D_MOCAP", "")
-    path = Path(configured) if configured else None
-    if path is not None and not path.is_absolute():
-        path = root / path
-    if path is None or not path.is_dir():
-        raise InputError(root / "params.yaml", "no motion capture folder: set train_lifter.mocap or $DANCE3D_MOCAP "
-                                               "to a folder of BVH / DeepMimic / npz / C3D motion (see MOCAP.md)")
-    return path
-
-
-def _write_outputs(root: Path, metrics: dict, losses: list[float]) -> None:
-    write_json(root / METRICS / "lifter.json", metrics)
-    every = max(1, len(losses) // 200)
-    with atomic_path(root / METRICS / "lifter_loss.csv") as tmp:
-        tmp.write_text("step,train_mpjpe_mm\n" + "".join(
-            f"{i},{1000 * loss:.2f}\n" for i, loss in enumerate(losses) if i % every == 0))
+def _write_outputs(root: Path, metrics: dict, losses_mm: list[float]) -> None:
+    write_training_outputs(root / METRICS / "lifter.json", metrics, root / METRICS / "lifter_loss.csv",
+                           "train_mpjpe_mm", losses_mm)
 
 
 def use_shipped(root: Path, shipped: Path = SHIPPED) -> None:
     """Copy the shipped lifter to models/lifter.onnx and its recorded figures to metrics/."""
-    import onnx
-
-    meta = {p.key: p.value for p in onnx.load(str(shipped), load_external_data=False).metadata_props}
-    with atomic_path(root / LIFTER) as tmp:
-        shutil.copyfile(shipped, tmp)
-    metrics = {**json.loads(meta["metrics"]), "shipped": True}
-    losses = [float(x) / 1000 for x in meta.get("loss_curve_mm", "").split(",") if x]
-    _write_outputs(root, metrics, losses)
+    meta = copy_shipped(shipped, root / LIFTER)
+    metrics = recorded_metrics(meta)
+    _write_outputs(root, metrics, [float(x) for x in meta.get("loss_curve_mm", "").split(",") if x])
     log.info("using the shipped lifter %s: held-out MPJPE %.1f mm, P-MPJPE %.1f mm (recorded at training; "
              "re-measure with dance3d eval lifter)", shipped.name, metrics["val_mpjpe_mm"], metrics["val_p_mpjpe_mm"])
 
@@ -80,7 +58,7 @@ def run(root: Path) -> None:
     from pipeline.motion.lifting.train import export_onnx, load_mocap, provenance, train_lifter
 
     cfg = config_from_params(params)
-    mocap = mocap_root(root, params)
+    mocap = mocap_root(root, params, "train_lifter")
     sequences = load_mocap(mocap, cfg)
     train, val = split(sequences, cfg.holdout)
     if not train or not val:
@@ -92,7 +70,7 @@ def run(root: Path) -> None:
     log.info("held-out MPJPE %.1f mm, P-MPJPE %.1f mm (mean pose %.1f mm); noisy 2D %.1f / %.1f mm",
              result.metrics["val_mpjpe_mm"], result.metrics["val_p_mpjpe_mm"], result.metrics["mean_pose_mpjpe_mm"],
              result.metrics["noisy_mpjpe_mm"], result.metrics["noisy_p_mpjpe_mm"])
-    _write_outputs(root, result.metrics, result.losses)
+    _write_outputs(root, result.metrics, [1000 * loss for loss in result.losses])
 
 
 def main() -> int:
