@@ -99,7 +99,98 @@ def pin_feet(world: np.ndarray, contact: np.ndarray, ease: int = 3) -> np.ndarra
     return out
 
 
+def planted_points(probability: np.ndarray, threshold: float = 0.5, min_frames: int = 3) -> np.ndarray:
+    """T x 4 planted flags from contact probabilities (heels and toe tips): above ``threshold``
+    for at least ``min_frames`` frames in a row (a single frame is noise, not a step)."""
+    planted = np.asarray(probability) > threshold
+    for k in range(planted.shape[1]):
+        for a, b in _runs(planted[:, k]):
+            if b - a < min_frames:
+                planted[a:b, k] = False
+    return planted
+
+
+def foot_planted(planted: np.ndarray) -> np.ndarray:
+    """T x 2 (left, right): a foot is on the floor when its heel or its toe tip is planted."""
+    return np.stack([planted[:, list(points)].any(1) for points in FOOT_POINTS], 1)
+
+
+def pin_planted(world: np.ndarray, feet: np.ndarray, planted: np.ndarray,
+                ease: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """World joints (T x 17 x 3) and feet (T x 4 x 3) with every planted heel or toe tip held where
+    it stands during its contact and on the floor (y = 0): the ankle is moved by the planted points'
+    mean offset from their targets and the leg bent to reach it by two-bone IK; the feet ride on
+    their ankles. Each contact eases in and out over ``ease`` frames."""
+    out = world.copy()
+    n = len(world)
+    for side, (hip, knee, ankle) in enumerate(LEGS):
+        points = list(FOOT_POINTS[side])
+        thigh = float(np.median(np.linalg.norm(world[:, knee] - world[:, hip], axis=-1)))
+        shin = float(np.median(np.linalg.norm(world[:, ankle] - world[:, knee], axis=-1)))
+        shift = np.zeros((n, 3))
+        weight = np.zeros(n)
+        for a, b in _runs(planted[:, points].any(1)):
+            offsets = np.zeros((b - a, 3))
+            count = np.zeros(b - a)
+            for p in points:
+                mask = planted[a:b, p]
+                if not mask.any():
+                    continue
+                target = np.median(feet[a:b, p][mask], axis=0)
+                target[1] = 0.0
+                offsets[mask] += target - feet[a:b, p][mask]
+                count[mask] += 1
+            offsets /= np.maximum(count, 1)[:, None]
+            lo, hi = max(0, a - ease), min(n, b + ease)
+            shift[a:b] = offsets
+            shift[lo:a], shift[b:hi] = offsets[0], offsets[-1]
+            ramp = np.ones(hi - lo)
+            ramp[: a - lo] = np.arange(1, a - lo + 1) / (a - lo + 1)
+            ramp[len(ramp) - (hi - b):] = np.arange(hi - b, 0, -1) / (hi - b + 1)
+            weight[lo:hi] = np.maximum(weight[lo:hi], ramp)
+        moved = weight > 0
+        if moved.any():
+            goal = world[moved, ankle] + weight[moved, None] * shift[moved]
+            out[moved, knee], out[moved, ankle] = _two_bone(world[moved, hip], world[moved, knee], goal, thigh, shin)
+    carried = carry_feet(feet, world, out)
+    # A planted point stands exactly on its target: the foot's own shape jitters in the lifted
+    # motion, and moving the ankle alone would leave each point sliding by that jitter.
+    for k in range(feet.shape[1]):
+        for a, b in _runs(planted[:, k]):
+            target = np.median(feet[a:b, k], axis=0)
+            target[1] = 0.0
+            carried[a:b, k] = target
+    return out, carried
+
+
 def carry_feet(feet: np.ndarray, before: np.ndarray, after: np.ndarray) -> np.ndarray:
     """Heels and toes (T x 4 x 3) moved with their ankles from the joints ``before`` to ``after``."""
     ankles = list(FEET_ANKLES_H36M)
     return feet + (after[:, ankles] - before[:, ankles])
+
+
+# --- the label rule on motion capture: what "planted" means for the learned contacts ---------
+
+CAPTURE_SPEED = 0.2    # m/s: GVHMR's static joints are < 0.15 m/s, WHAM's ~1 cm per frame at 30 fps (0.3)
+CAPTURE_HEIGHT = 0.04  # m above the standing level: a planted point, not one lifted for a step
+
+
+def standing_level(feet: np.ndarray, fps: float, speed: float = CAPTURE_SPEED) -> float:
+    """Height of the floor's contact level in world motion (T x 4 x 3 heels and toe tips, y up): the
+    median height of the lowest foot point over the frames where it is still. Rigs differ in where
+    their floor is and some feet pass below it, so the level is measured, not assumed to be y = 0."""
+    speeds = np.linalg.norm(np.gradient(feet, axis=0), axis=-1) * fps
+    lowest = feet[..., 1].argmin(1)
+    heights = feet[np.arange(len(feet)), lowest, 1]
+    still = speeds[np.arange(len(feet)), lowest] < speed
+    return float(np.median(heights[still]) if still.sum() >= 10 else np.percentile(heights, 5))
+
+
+def capture_contact(feet: np.ndarray, fps: float, level: float | None = None) -> np.ndarray:
+    """T x 4 contact flags of world heels and toe tips (``skeleton.FEET`` order) from motion capture:
+    a point is planted when it is within ``CAPTURE_HEIGHT`` of the standing level and moves (in 3D)
+    slower than ``CAPTURE_SPEED``. Heel and toe apart, so a dancer on the ball of the foot is planted
+    at the toe and a heel pivot at the heel."""
+    level = standing_level(feet, fps) if level is None else level
+    speeds = np.linalg.norm(np.gradient(feet, axis=0), axis=-1) * fps
+    return (feet[..., 1] - level < CAPTURE_HEIGHT) & (speeds < CAPTURE_SPEED)

@@ -40,8 +40,30 @@ def estimate_up(joints_cam: np.ndarray) -> np.ndarray:
     return unit(np.median(unit(axis), axis=0))
 
 
-def estimate_camera(joints_cam: np.ndarray) -> CameraEstimate:
+# How much the body's long axis counts against the planted points' plane (m^2): the plane wins
+# where the contacts spread more than about sqrt(BODY_PRIOR) across the floor.
+BODY_PRIOR = 0.2
+
+
+def up_from_contacts(points_cam: np.ndarray, body_up: np.ndarray, prior: float = BODY_PRIOR) -> np.ndarray:
+    """Up (camera coordinates) as the normal of the plane the planted heels and toe tips lie on
+    (``points_cam``: N x 3, camera frame, with the root path), pulled toward the body's long axis
+    ``body_up`` where they spread little: the smallest eigenvector of their scatter plus
+    ``prior`` (I - u u^T). Planted feet touch one floor; a lifted body leans with the camera's view."""
+    if len(points_cam) < 10:
+        return body_up
+    centred = points_cam - points_cam.mean(0)
+    scatter = centred.T @ centred / len(centred) + prior * (np.eye(3) - np.outer(body_up, body_up))
+    normal = np.linalg.eigh(scatter)[1][:, 0]
+    return normal if normal @ body_up > 0 else -normal
+
+
+def estimate_camera(joints_cam: np.ndarray, contacts_cam: np.ndarray | None = None) -> CameraEstimate:
+    """The camera's tilt from the body's long axis, and from the planted points (N x 3, camera
+    frame) when they are given."""
     up = estimate_up(joints_cam)
+    if contacts_cam is not None:
+        up = up_from_contacts(contacts_cam, up)
     rotation = smallest_rotation(_FLIP @ up, np.array([[0.0, 1.0, 0.0]]))[0] @ _FLIP
     pitch = float(np.degrees(np.arctan2(-up[2], -up[1])))
     roll = float(np.degrees(np.arctan2(up[0], -up[1])))
@@ -57,20 +79,28 @@ def lowest_point(world: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def to_world(joints_cam: np.ndarray, camera: CameraEstimate | None = None,
-             root: np.ndarray | None = None) -> tuple[np.ndarray, CameraEstimate]:
+             root: np.ndarray | None = None, planted: np.ndarray | None = None) -> tuple[np.ndarray, CameraEstimate]:
     """Root-relative camera-frame joints (T x 17 x 3, or 21 with the feet), and optionally the root's
     camera-frame path (T x 3), -> world joints with the floor at y = 0 and the root starting above
-    the origin."""
-    camera = camera or estimate_camera(joints_cam)
+    the origin. With ``planted`` (T x 4 flags of the heels and toe tips, joints 17-20), the floor
+    is where the planted points are (their median height is y = 0), so planted feet touch it."""
     rel = joints_cam - joints_cam[:, :1]
+    if camera is None:
+        contacts = None
+        if planted is not None and root is not None and joints_cam.shape[1] == 21 and planted.any():
+            contacts = (rel[:, 17:] + root[:, None])[planted]
+        camera = estimate_camera(joints_cam, contacts)
     if root is None:
         world = rel @ camera.rotation.T
         lowest, height = lowest_point(world)
         world[..., 1] += (height - lowest)[:, None]
         return world, camera
     world = (rel + root[:, None]) @ camera.rotation.T
-    lowest, height = lowest_point(world)
-    world[..., 1] += height - np.percentile(lowest, 5)
+    if planted is not None and world.shape[1] == 21 and planted.any():
+        world[..., 1] -= np.median(world[:, 17:, 1][planted])
+    else:
+        lowest, height = lowest_point(world)
+        world[..., 1] += height - np.percentile(lowest, 5)
     world[..., [0, 2]] -= world[0, 0, [0, 2]]
     return world, camera
 

@@ -1,5 +1,13 @@
 """A clip grounded in the world, as the corpus stores it: gravity and floor, its root path,
-one skeleton, foot contact with pinned feet, and joint rotations (6D) on that skeleton."""
+one skeleton, foot contact with pinned feet, and joint rotations (6D) on that skeleton.
+
+With learned contact probabilities (``contact_model``, carried in the motion files) and the
+feet, planted heels and toe tips drive the world: they anchor the root path
+(``trajectory.refine_root``), set the floor (their median height is y = 0) and are pinned
+where they stand, on it. Without them (motion files from before, a lifter without feet) the
+older rules hold: the per-frame root, the floor at the lowest foot point's 5th percentile and
+contact judged at the ankles (``contact.foot_contact``).
+"""
 
 from __future__ import annotations
 
@@ -8,9 +16,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.motion.world.bones import apply_skeleton, bone_length_cv, fit_skeleton
-from pipeline.motion.world.contact import carry_feet, foot_contact, pin_feet, skating
+from pipeline.motion.world.contact import (
+    carry_feet,
+    foot_contact,
+    foot_planted,
+    pin_feet,
+    pin_planted,
+    planted_points,
+    skating,
+)
 from pipeline.motion.world.gravity import to_world
 from pipeline.motion.world.rotations import BVH_JOINTS, solve_rotations
+from pipeline.motion.world.trajectory import refine_root
 
 ROTATION_JOINTS = tuple(j.name for j in BVH_JOINTS)
 
@@ -27,25 +44,40 @@ class GroundedClip:
     skate_before: float       # horizontal ankle speed in contact (m/s) before pinning (NaN: no contact)
     skate_after: float        # ... after
     feet: np.ndarray | None = None  # T x 4 x 3 world heels and toe tips riding on the ankles (None: no feet)
+    planted: np.ndarray | None = None            # T x 4 bool: planted heels and toe tips (None: no learned contact)
+    contact_probability: np.ndarray | None = None  # T x 4 the contact model's probabilities
+    fit_moved: float = 0.0    # mean distance (m) the one-skeleton fit moved the joints
+    camera_rotation: np.ndarray | None = None  # 3 x 3 camera frame -> world frame
+    root_camera: np.ndarray | None = None      # T x 3 the root path used, camera frame (refined when learned)
 
 
 def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float,
-                feet_cam: np.ndarray | None = None) -> GroundedClip:
-    """Camera-frame root-relative joints (T x 17 x 3), the root path (T x 3 or None) and the
-    heels and toe tips (T x 4 x 3, like the joints, or None)."""
+                feet_cam: np.ndarray | None = None, contact_probability: np.ndarray | None = None) -> GroundedClip:
+    """Camera-frame root-relative joints (T x 17 x 3), the root path (T x 3 or None), the heels
+    and toe tips (T x 4 x 3, like the joints, or None) and their contact probabilities (T x 4 or None)."""
     joints_cam = joints_cam.astype(np.float64)
+    learned = contact_probability is not None and feet_cam is not None and root is not None
+    planted = planted_points(contact_probability) if learned else None
+    if learned:
+        root = refine_root(root.astype(np.float64), feet_cam.astype(np.float64) - joints_cam[:, :1], planted)
     if feet_cam is not None:
         joints_cam = np.concatenate([joints_cam, feet_cam.astype(np.float64)], 1)
-    everything, camera = to_world(joints_cam, root=None if root is None else root.astype(np.float64))
+    everything, camera = to_world(joints_cam, root=None if root is None else root.astype(np.float64),
+                                  planted=planted)
     world = everything[:, :17]
     fitted = apply_skeleton(world, fit_skeleton(world))
     feet = None if feet_cam is None else carry_feet(everything[:, 17:], world, fitted)
-    # Contact stays judged at the ankles: on lifted motion the heels and toes did no better
-    # (benchmarks/world.py, README "Root path, world frame").
-    contact = foot_contact(fitted, fps)
-    motion = solve_rotations(pin_feet(fitted, contact))  # pinning bends legs: rotations of the final pose
+    if learned:
+        contact = foot_planted(planted)
+        pinned, feet = pin_planted(fitted, feet, planted)
+    else:
+        contact = foot_contact(fitted, fps)
+        pinned = pin_feet(fitted, contact)
+    motion = solve_rotations(pinned)  # pinning bends legs: rotations of the final pose
     six = motion.local[..., :, :2].transpose(0, 1, 3, 2).reshape(len(world), len(BVH_JOINTS), 6)
     return GroundedClip(motion.joints, contact, fit_skeleton(motion.joints), six, camera.pitch_deg,
                         camera.roll_deg, bone_length_cv(world), skating(fitted, contact, fps),
                         skating(motion.joints, contact, fps),
-                        None if feet is None else carry_feet(feet, fitted, motion.joints))
+                        None if feet is None else carry_feet(feet, pinned, motion.joints), planted,
+                        None if contact_probability is None else np.asarray(contact_probability, np.float32),
+                        float(np.linalg.norm(fitted - world, axis=-1).mean()), camera.rotation, root)
