@@ -5,6 +5,7 @@ The shard stage calls these; the window contract (schema, split rule) is ``windo
 
 from __future__ import annotations
 
+import json
 import shutil
 from pathlib import Path
 
@@ -77,11 +78,13 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
             if not starts:
                 counts["clips_too_short"] += 1
                 continue
-            grounded = ground_clip(clip.joints, clip.root, fps, clip.feet)
+            grounded = ground_clip(clip.joints, clip.root, fps, clip.feet, clip.contact)
             counts.setdefault("grounding", []).append({
                 "clip_id": clip.clip_id, "pitch_deg": round(grounded.pitch_deg, 1),
                 "roll_deg": round(grounded.roll_deg, 1), "bone_cv_before": round(grounded.cv_before, 4),
+                "fit_moved_mm": round(1000 * grounded.fit_moved, 1),
                 "contact_share": round(float(grounded.contact.mean()), 3),
+                "contact_learned": grounded.planted is not None,
                 "skate_before_m_s": round(grounded.skate_before, 4), "skate_after_m_s": round(grounded.skate_after, 4)})
             for k in starts:
                 i = k - int(clip.frame[0])
@@ -102,19 +105,24 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
                 world_feet = None if grounded.feet is None else grounded.feet[i: i + window].copy()
                 if world_feet is not None:
                     world_feet[..., [0, 2]] -= start
+                planted = None if grounded.planted is None else grounded.planted[i: i + window]
+                probability = (None if grounded.contact_probability is None
+                               else grounded.contact_probability[i: i + window])
                 windows.append(Window(meta, joints, feats.mfcc[k: k + window], feats.chroma[k: k + window],
                                       feats.onset[k: k + window], feats.beat[k: k + window], world,
                                       grounded.contact[i: i + window], grounded.rotations_6d[i: i + window],
-                                      feet, world_feet))
+                                      feet, world_feet, planted, probability))
     return windows, counts
 
 
 def grounding_summary(clips: list[dict]) -> dict:
     """Medians over the clips of the world grounding: camera tilt, bone-length CV before the one
     skeleton (0 after), contact share and foot skating before and after pinning."""
-    keys = ("pitch_deg", "roll_deg", "bone_cv_before", "contact_share", "skate_before_m_s", "skate_after_m_s")
+    keys = ("pitch_deg", "roll_deg", "bone_cv_before", "fit_moved_mm", "contact_share", "skate_before_m_s",
+            "skate_after_m_s")
     medians = {k: round(float(np.nanmedian([c[k] for c in clips])), 4) if clips else float("nan") for k in keys}
-    return {"clips": len(clips), **medians}
+    return {"clips": len(clips), "clips_with_learned_contact": sum(bool(c.get("contact_learned")) for c in clips),
+            **medians}
 
 
 def alignment_summary(windows: list[Window], fps: float, seed: int = 0) -> dict:
@@ -209,8 +217,10 @@ def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, para
                       f"{typical.meta['window_id']}: beat-align score {typical.meta['beat_align_score']:.2f}")
     with atomic_path(root / CORPUS / "README.md") as tmp:
         splits = [s for s, n in (("train", totals["windows_train"]), ("val", totals["windows_val"])) if n]
+        contact_file = root / METRICS / "contact.json"
+        contact = json.loads(contact_file.read_text()) if contact_file.exists() else None
         tmp.write_text(hf_front_matter(splits) + render_card(stats, ledger, card_params, totals, alignment,
-                                                           style_stats(metas)))
+                                                           style_stats(metas), contact))
     (root / CORPUS / "card.md").unlink(missing_ok=True)  # the card's name before schema 4
     durations_csv(root / METRICS / "durations.csv", {"videos": series["source videos"],
                                                      "segments": series["trimmed segments"], "clips": clip_seconds})

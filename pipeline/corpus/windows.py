@@ -18,8 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 
-SCHEMA_VERSION = 5  # 2: beat, downbeat and motion-beat frames, alignment scores; any frame rate. 3: tags.
+SCHEMA_VERSION = 6  # 2: beat, downbeat and motion-beat frames, alignment scores; any frame rate. 3: tags.
 #                    4: world-frame joints, root path, foot contact, bone lengths, 6D rotations, camera pitch/roll
+#                    5: feet, world_feet. 6: contact from the learned contact model, planted, contact_probability
 FPS = 24  # the default corpus rate
 MFCC_DIMS = 39
 # A window built without beat analysis (tests, benchmarks) has no beats: empty lists, NaN scores.
@@ -56,6 +57,8 @@ def corpus_schema(window: int) -> pa.Schema:
         ("world_joints", fixed(fixed(fixed(pa.float32(), 3), 17), window)),  # y up, floor 0, x/z from window start
         ("root", fixed(fixed(pa.float32(), 3), window)),                      # world_joints' pelvis: the path
         ("contact", fixed(fixed(pa.int8(), 2), window)),                      # left, right foot on the floor
+        ("planted", fixed(fixed(pa.int8(), 4), window)),                      # each heel and toe tip planted
+        ("contact_probability", fixed(fixed(pa.float32(), 4), window)),       # the contact model's (NaN: none)
         ("feet", fixed(fixed(fixed(pa.float32(), 3), 4), window)),            # heels, toe tips like motion (NaN: none)
         ("world_feet", fixed(fixed(fixed(pa.float32(), 3), 4), window)),      # ... like world_joints
         ("rotations_6d", fixed(fixed(fixed(pa.float32(), 6), ROTATION_JOINTS), window)),
@@ -87,6 +90,8 @@ class Window:
     rotations: np.ndarray | None = None  # W x ROTATION_JOINTS x 6
     feet: np.ndarray | None = None       # W x 4 x 3 heels and toe tips, camera frame like motion (None: NaN)
     world_feet: np.ndarray | None = None  # W x 4 x 3 the same in the world frame
+    planted: np.ndarray | None = None     # W x 4 planted heels and toe tips (None: zeros)
+    contact_probability: np.ndarray | None = None  # W x 4 (None: NaN)
 
 
 def _nested(values: np.ndarray, dtype: pa.DataType, shape: tuple[int, ...]) -> pa.Array:
@@ -99,7 +104,7 @@ def _nested(values: np.ndarray, dtype: pa.DataType, shape: tuple[int, ...]) -> p
 def windows_table(windows: list[Window], window: int) -> pa.Table:
     schema = corpus_schema(window)
     tensors = ("motion", "mfcc", "chroma", "onset", "beat", "world_joints", "root", "contact", "rotations_6d",
-               "bone_lengths", "feet", "world_feet")
+               "bone_lengths", "feet", "world_feet", "planted", "contact_probability")
     defaults = {**BEAT_DEFAULTS, **WORLD_DEFAULTS}
     scalars = {name: [w.meta.get(name, defaults[name]) if name in defaults else w.meta[name] for w in windows]
                for name in schema.names if name not in tensors}
@@ -128,6 +133,20 @@ def windows_table(windows: list[Window], window: int) -> pa.Table:
         "bone_lengths": _nested(lengths.astype(np.float32), pa.float32(), (BONES,)),
         "feet": _nested(stack("feet", (window, 4, 3)).astype(np.float32), pa.float32(), (window, 4, 3)),
         "world_feet": _nested(stack("world_feet", (window, 4, 3)).astype(np.float32), pa.float32(), (window, 4, 3)),
+        "planted": _nested(np.nan_to_num(stack("planted", (window, 4))).astype(np.int8), pa.int8(), (window, 4)),
+        "contact_probability": _nested(stack("contact_probability", (window, 4)).astype(np.float32), pa.float32(),
+                                       (window, 4)),
     }
     columns = [arrays[f.name] if f.name in arrays else pa.array(scalars[f.name], f.type) for f in schema]
     return pa.Table.from_arrays(columns, schema=schema)
+
+
+def check_schema(path) -> None:
+    """Refuse a shard written by another corpus schema, naming it and what to do."""
+    from pipeline.core.errors import InputError
+    from pipeline.core.storage import read_meta
+
+    version = read_meta(path).get("schema_version")
+    if version != SCHEMA_VERSION:
+        raise InputError(path, f"corpus schema {version}, this dance3d reads schema {SCHEMA_VERSION}: rebuild the "
+                               "corpus with `dvc repro shard` (or install the dance3d that wrote it)")

@@ -19,6 +19,8 @@ import pyarrow.parquet as pq
 import torch
 from torch.utils.data import IterableDataset, get_worker_info
 
+from pipeline.corpus.windows import check_schema
+
 AUDIO_DIMS = 27  # MFCC-13 + deltas (26, as the seed model uses) + the beat flag
 # Rows are read-only views of Arrow buffers; collation copies them, so torch's warning is noise here.
 warnings.filterwarnings("ignore", message="The given NumPy array is not writable")
@@ -52,6 +54,8 @@ class WindowDataset(IterableDataset):
             raise ValueError(f"motion must be 'camera' or 'world', not {motion!r}")
         self.motion_column = "motion" if motion == "camera" else "world_joints"
         self.files = shard_files(folder)
+        for f in self.files:
+            check_schema(f)
         self.units = []
         for f in self.files:
             groups = list(range(pq.ParquetFile(f).num_row_groups))
