@@ -20,6 +20,7 @@ from pipeline.core.paths import (
     SEGMENTS,
     SMOOTH,
     TRACKS,
+    WORLD,
 )
 from pipeline.core.storage import item_files
 from pipeline.ingest.catalog import read_discovered, read_index, read_ledger
@@ -62,7 +63,7 @@ def summarise(root: Path) -> str:
     else:
         lines.append("trim: not run yet")
     for stage, folder in (("pose2d", POSE2D), ("track", TRACKS), ("clean", CLEAN), ("lift", POSE3D),
-                          ("smooth", SMOOTH), ("resample", MOTION24), ("audio", AUDIO_FEATURES)):
+                          ("smooth", SMOOTH), ("resample", MOTION24), ("ground", WORLD), ("audio", AUDIO_FEATURES)):
         files = item_files(root / folder)
         if files:
             lines.append(f"{stage}: {len(files)} segments in {folder}")

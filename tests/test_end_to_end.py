@@ -93,6 +93,14 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     assert np.isfinite(joints).all() and (joints[:, 10, 1] > joints[:, 0, 1]).mean() > 0.9
     assert joints[:, [3, 6], 1].min() > -0.15 and np.allclose(np.array(world["root"]), joints[:, 0], atol=1e-6)
     assert len(world["bone_lengths"]) == 16 and -45 < world["camera_pitch"] < 45
+    # Contact from the shipped contact model: planted heels and toes stand on the floor (y = 0).
+    feet = pq.read_table(shards[0], columns=["world_feet", "planted", "contact_probability", "contact"]).to_pylist()[0]
+    planted, probability = np.array(feet["planted"], bool), np.array(feet["contact_probability"])
+    assert np.isfinite(probability).all() and ((probability > 0.5) >= planted).all() and planted.any()
+    assert np.abs(np.array(feet["world_feet"])[..., 1][planted]).max() < 1e-5
+    by_foot = np.stack([planted[:, [0, 2]].any(1), planted[:, [1, 3]].any(1)], 1)  # heel or toe, left and right
+    assert (np.array(feet["contact"], bool) == by_foot).all()
+    assert "## World motion" in (root / "data/corpus/README.md").read_text()
     import datasets
 
     loaded = datasets.load_dataset(str(root / "data/corpus"), cache_dir=str(tmp_path / "hf"))
@@ -121,7 +129,7 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     third = _dvc(root, "repro")
     assert third.returncode == 0, third.stderr[-3000:]
     ran = [line.split("'")[1] for line in third.stdout.splitlines() if line.startswith("Running stage")]
-    assert ran == ["discover", "clean", "lift", "smooth", "resample", "shard", "train"]  # discover: always
+    assert ran == ["discover", "clean", "lift", "smooth", "resample", "ground", "shard", "train"]  # discover: always
     assert not read_clean(root / "data/clean/solo_dance_001.parquet").clips
     assert sum(len(c.frame) for c in read_clean(root / "data/clean/solo_dance_000.parquet").clips) == 9 * 15
 

@@ -17,6 +17,7 @@ METRICS = Path("metrics")
 POSE3D = Path("data/pose3d")
 SMOOTH = Path("data/smooth")
 MOTION24 = Path("data/motion24")
+WORLD = Path("data/world")
 LIFTER = Path("models/lifter.onnx")
 CONTACT_MODEL = Path("models/contact.onnx")
 AUDIO = Path("data/audio")
@@ -26,4 +27,5 @@ CORPUS = Path("data/corpus")
 # The folder holding each stage's _failures.parquet.
 FAILURE_DIRS = {"download": RAW, "propose_segments": SEGMENT_PROPOSALS, "trim": SEGMENTS,
                 "pose2d": POSE2D, "track": TRACKS, "clean": CLEAN,
-                "lift": POSE3D, "smooth": SMOOTH, "resample": MOTION24, "audio": AUDIO_FEATURES}
+                "lift": POSE3D, "smooth": SMOOTH, "resample": MOTION24, "ground": WORLD,
+                "audio": AUDIO_FEATURES}

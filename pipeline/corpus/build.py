@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.core.ids import video_id_of_segment
-from pipeline.core.paths import AUDIO_FEATURES, CLEAN, CORPUS, METRICS, MOTION24, RAW, SEGMENTS, TRACKS
+from pipeline.core.paths import AUDIO_FEATURES, CLEAN, CORPUS, METRICS, MOTION24, RAW, SEGMENTS, TRACKS, WORLD
 from pipeline.core.storage import atomic_path, item_files, read_meta, write_json, write_parquet
 from pipeline.corpus.card import (
     alignment_png,
@@ -27,7 +27,8 @@ from pipeline.corpus.windows import FPS, SCHEMA_VERSION, Window, split_of, windo
 from pipeline.ingest.catalog import read_index, read_ledger
 from pipeline.motion.mocap.skeleton import H36M17, H36M_BONES
 from pipeline.motion.motionfile import clip_frame_counts, read_motion
-from pipeline.motion.world.grounding import ROTATION_JOINTS, ground_clip
+from pipeline.motion.world.grounding import ROTATION_JOINTS
+from pipeline.motion.world.worldfile import read_world
 from pipeline.music.alignment import beat_align_score, beat_f1, half_beat_later, kinematic_beats, shuffled_pairs
 from pipeline.music.featurefile import FeatureFile, read_features
 from pipeline.pose.trackfile import read_tracks
@@ -56,17 +57,22 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
     ledger = {r["video_id"]: r for r in read_ledger(root / RAW).values() if r["status"] == "ok"}
     segments = read_index(root / SEGMENTS)
     windows: list[Window] = []
-    counts = {"clips": 0, "clips_without_audio": 0, "clips_too_short": 0}
+    counts = {"clips": 0, "clips_without_audio": 0, "clips_without_world": 0, "clips_too_short": 0}
     for motion_file in item_files(root / MOTION24):
         seg_id = motion_file.stem
         seg = segments.get(seg_id)
         feature_file = root / AUDIO_FEATURES / f"{seg_id}.parquet"
+        world_file = root / WORLD / f"{seg_id}.parquet"
         motion = read_motion(motion_file)
         clips = motion.clips
         counts["clips"] += len(clips)
         if seg is None or not feature_file.exists():
             counts["clips_without_audio"] += len(clips)
             continue
+        if not world_file.exists():  # the ground stage failed on it (its _failures.parquet says why)
+            counts["clips_without_world"] += len(clips)
+            continue
+        grounded_clips = {c.clip_id: c for c in read_world(world_file)}
         feats = read_features(feature_file)
         for name, rate in (("motion", motion.fps), ("audio features", float(feats.meta.get("fps", FPS)))):
             if abs(rate - fps) > 1e-9:
@@ -75,17 +81,13 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
         for clip in clips:
             starts = [k for k in window_starts(int(clip.frame[0]), len(clip.frame), window, hop)
                       if k + window <= feats.frames]
+            grounded = grounded_clips.get(clip.clip_id)
+            if grounded is None or len(grounded.frame) != len(clip.frame):
+                raise ValueError(f"{world_file}: clip {clip.clip_id} does not match {motion_file}: re-run ground")
             if not starts:
                 counts["clips_too_short"] += 1
                 continue
-            grounded = ground_clip(clip.joints, clip.root, fps, clip.feet, clip.contact)
-            counts.setdefault("grounding", []).append({
-                "clip_id": clip.clip_id, "pitch_deg": round(grounded.pitch_deg, 1),
-                "roll_deg": round(grounded.roll_deg, 1), "bone_cv_before": round(grounded.cv_before, 4),
-                "fit_moved_mm": round(1000 * grounded.fit_moved, 1),
-                "contact_share": round(float(grounded.contact.mean()), 3),
-                "contact_learned": grounded.planted is not None,
-                "skate_before_m_s": round(grounded.skate_before, 4), "skate_after_m_s": round(grounded.skate_after, 4)})
+            counts.setdefault("grounding", []).append({"clip_id": clip.clip_id, **grounded.facts})
             for k in starts:
                 i = k - int(clip.frame[0])
                 joints = clip.joints[i: i + window]
@@ -96,8 +98,9 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
                         "licence": video.get("licence", ""), "segment_id": seg_id, "clip_id": clip.clip_id,
                         "track_id": clip.track_id, "start_frame": k, "start_time": k / fps,
                         "segment_start": seg["start"], "tempo": feats.tempo,
-                        "bone_lengths": grounded.bone_lengths, "camera_pitch": grounded.pitch_deg,
-                        "camera_roll": grounded.roll_deg, **window_beats(feats, joints, k, window, fps)}
+                        "bone_lengths": np.asarray(grounded.facts["bone_lengths"]),
+                        "camera_pitch": grounded.facts["pitch_deg"], "camera_roll": grounded.facts["roll_deg"],
+                        **window_beats(feats, joints, k, window, fps)}
                 world = grounded.joints[i: i + window].copy()
                 start = world[0, 0, [0, 2]].copy()
                 world[..., [0, 2]] -= start  # x/z from the window's first root position
@@ -230,6 +233,8 @@ def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, para
                "track_ids_per_video": total.get("track_ids_per_video", 0.0),
                "track_minutes": total.get("track_minutes", 0.0), "windows_train": totals["windows_train"],
                "windows_val": totals["windows_val"], "clips": counts["clips"],
-               "clips_without_audio": counts["clips_without_audio"], "clips_too_short": counts["clips_too_short"],
+               "clips_without_audio": counts["clips_without_audio"],
+               "clips_without_world": counts.get("clips_without_world", 0),
+               "clips_too_short": counts["clips_too_short"],
                "beat_alignment": alignment, "grounding": grounding_summary(counts.get("grounding", []))}
     write_json(root / METRICS / "corpus.json", metrics)

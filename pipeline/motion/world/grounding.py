@@ -12,6 +12,7 @@ contact judged at the ankles (``contact.foot_contact``).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -52,12 +53,14 @@ class GroundedClip:
 
 
 def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float,
-                feet_cam: np.ndarray | None = None, contact_probability: np.ndarray | None = None) -> GroundedClip:
+                feet_cam: np.ndarray | None = None, contact_probability: np.ndarray | None = None, *,
+                threshold: float = 0.5, min_frames: int = 3) -> GroundedClip:
     """Camera-frame root-relative joints (T x 17 x 3), the root path (T x 3 or None), the heels
-    and toe tips (T x 4 x 3, like the joints, or None) and their contact probabilities (T x 4 or None)."""
+    and toe tips (T x 4 x 3, like the joints, or None) and their contact probabilities (T x 4 or
+    None; a point is planted above ``threshold`` for ``min_frames`` frames in a row)."""
     joints_cam = joints_cam.astype(np.float64)
     learned = contact_probability is not None and feet_cam is not None and root is not None
-    planted = planted_points(contact_probability) if learned else None
+    planted = planted_points(contact_probability, threshold, min_frames) if learned else None
     if learned:
         root = refine_root(root.astype(np.float64), feet_cam.astype(np.float64) - joints_cam[:, :1], planted)
     if feet_cam is not None:
@@ -81,3 +84,32 @@ def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float,
                         None if feet is None else carry_feet(feet, pinned, motion.joints), planted,
                         None if contact_probability is None else np.asarray(contact_probability, np.float32),
                         float(np.linalg.norm(fitted - world, axis=-1).mean()), camera.rotation, root)
+
+
+# --- the ground stage's worker -----------------------------------------------------------
+
+@dataclass(frozen=True)
+class GroundJob:
+    motion24: Path
+    out: Path
+    contact_threshold: float  # a point is planted above this probability ...
+    min_contact_frames: int   # ... for at least this many frames in a row
+    params: dict
+    inputs: dict
+    fingerprint: str
+
+
+def ground_segment(job: GroundJob) -> dict:
+    """Ground every clip of a segment's 24 fps motion; writes the segment's world file."""
+    from pipeline.motion.motionfile import read_motion
+    from pipeline.motion.world.worldfile import world_clip, write_world
+
+    motion = read_motion(job.motion24)
+    clips = []
+    for clip in motion.clips:
+        grounded = ground_clip(clip.joints, clip.root, motion.fps, clip.feet, clip.contact,
+                               threshold=job.contact_threshold, min_frames=job.min_contact_frames)
+        clips.append(world_clip(clip.clip_id, clip.track_id, clip.frame, clip.time, grounded))
+    segment = {k: motion.meta.get(k) for k in ("segment_id", "fps", "source_fps", "width", "height")}
+    write_world(job.out, clips, segment, fingerprint=job.fingerprint, params=job.params, inputs=job.inputs)
+    return {"clips": len(clips), "learned": sum(c.planted is not None for c in clips)}

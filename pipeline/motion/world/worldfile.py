@@ -1,0 +1,128 @@
+"""World motion files (data/world): the ground stage's output, one row per clip frame at the corpus rate.
+
+Columns: clip_id, track_id, frame and time (the motion24 grid: frame k at k / fps s on the segment
+clock), joints (H36M-17 x 3, metres, y up, the floor at y = 0, x/z from the clip's first root
+position; one skeleton per clip, planted feet pinned), feet (left heel, right heel, left toe tip,
+right toe tip x 3, the same frame; NaN without feet), contact (left, right foot on the floor),
+planted (each foot point planted), contact_probability (the contact model's; NaN without one),
+rotations_6d (local joint rotations on the clip's skeleton, ``rotations.BVH_JOINTS`` order).
+
+Per clip, in the file's metadata (``clips``): bone_lengths, camera pitch and roll, the largest
+limb-length CV before the one skeleton and how far it moved the joints, skating before and after
+pinning, the contact share, and whether contact was learned.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from pipeline.core.storage import column_array, fixed_list, read_meta, write_parquet
+from pipeline.motion.world.grounding import ROTATION_JOINTS, GroundedClip
+
+SCHEMA_VERSION = 1
+ROTATIONS = len(ROTATION_JOINTS)
+WORLD_SCHEMA = pa.schema([
+    ("clip_id", pa.string()),
+    ("track_id", pa.int32()),
+    ("frame", pa.int32()),
+    ("time", pa.float64()),
+    ("joints", pa.list_(pa.float32(), 51)),
+    ("feet", pa.list_(pa.float32(), 12)),
+    ("contact", pa.list_(pa.int8(), 2)),
+    ("planted", pa.list_(pa.int8(), 4)),
+    ("contact_probability", pa.list_(pa.float32(), 4)),
+    ("rotations_6d", pa.list_(pa.float32(), ROTATIONS * 6)),
+])
+
+
+@dataclass(frozen=True)
+class WorldClip:
+    clip_id: str
+    track_id: int
+    frame: np.ndarray                 # n int
+    time: np.ndarray                  # n float
+    joints: np.ndarray                # n x 17 x 3
+    feet: np.ndarray | None           # n x 4 x 3 (None: no feet)
+    contact: np.ndarray               # n x 2 bool
+    planted: np.ndarray | None        # n x 4 bool (None: contact by the ankle rule)
+    contact_probability: np.ndarray | None  # n x 4 (None: no contact model)
+    rotations_6d: np.ndarray          # n x ROTATIONS x 6
+    facts: dict                       # bone_lengths, pitch_deg, roll_deg, cv_before, fit_moved_mm, ...
+
+
+def world_clip(clip_id: str, track_id: int, frame: np.ndarray, time: np.ndarray, grounded: GroundedClip) -> WorldClip:
+    """A grounded clip as the world file stores it."""
+    facts = {"bone_lengths": [round(float(x), 6) for x in grounded.bone_lengths],
+             "pitch_deg": round(grounded.pitch_deg, 2), "roll_deg": round(grounded.roll_deg, 2),
+             "bone_cv_before": round(grounded.cv_before, 5), "fit_moved_mm": round(1000 * grounded.fit_moved, 2),
+             "contact_share": round(float(grounded.contact.mean()), 4),
+             "contact_learned": grounded.planted is not None,
+             "skate_before_m_s": round(grounded.skate_before, 5), "skate_after_m_s": round(grounded.skate_after, 5)}
+    return WorldClip(clip_id, track_id, frame, time, grounded.joints, grounded.feet, grounded.contact,
+                     grounded.planted, grounded.contact_probability, grounded.rotations_6d, facts)
+
+
+def _table(clips: list[WorldClip]) -> pa.Table:
+    if not clips:
+        return WORLD_SCHEMA.empty_table()
+
+    def cat(values: list[np.ndarray | None], shape: tuple[int, ...], fill: float = np.nan) -> np.ndarray:
+        return np.concatenate([v.reshape(len(c.frame), -1) if v is not None
+                               else np.full((len(c.frame), int(np.prod(shape))), fill) for c, v in zip(clips, values)])
+
+    return pa.Table.from_arrays([
+        pa.array(np.concatenate([[c.clip_id] * len(c.frame) for c in clips]), pa.string()),
+        pa.array(np.concatenate([np.full(len(c.frame), c.track_id) for c in clips]), pa.int32()),
+        pa.array(np.concatenate([c.frame for c in clips]), pa.int32()),
+        pa.array(np.concatenate([c.time for c in clips]), pa.float64()),
+        fixed_list(cat([c.joints for c in clips], (51,))),
+        fixed_list(cat([c.feet for c in clips], (12,))),
+        fixed_list(cat([c.contact.astype(np.int8) for c in clips], (2,)).astype(np.int8), pa.int8()),
+        fixed_list(cat([None if c.planted is None else c.planted.astype(np.int8) for c in clips], (4,), 0)
+                   .astype(np.int8), pa.int8()),
+        fixed_list(cat([c.contact_probability for c in clips], (4,))),
+        fixed_list(cat([c.rotations_6d for c in clips], (ROTATIONS * 6,))),
+    ], schema=WORLD_SCHEMA)
+
+
+def write_world(path: Path, clips: list[WorldClip], segment_meta: Mapping[str, Any], *, fingerprint: str,
+                params: Mapping[str, Any], inputs: Mapping[str, str]) -> None:
+    write_parquet(_table(clips), path, schema_version=SCHEMA_VERSION, params=params, inputs=inputs,
+                  extra={"fingerprint": fingerprint, "clips": {c.clip_id: c.facts for c in clips},
+                         "rotation_joints": ",".join(ROTATION_JOINTS), **segment_meta})
+
+
+def read_world(path: Path) -> list[WorldClip]:
+    meta = read_meta(path)
+    if meta.get("schema_version") != SCHEMA_VERSION:
+        from pipeline.core.errors import InputError
+
+        raise InputError(path, f"world file schema {meta.get('schema_version')}, this dance3d reads "
+                               f"{SCHEMA_VERSION}: re-run the ground stage")
+    table = pq.read_table(path)
+    if not table.num_rows:
+        return []
+    ids = np.array(table.column("clip_id").to_pylist())
+    cols = {"frame": column_array(table, "frame"), "time": column_array(table, "time"),
+            "track": column_array(table, "track_id"), "joints": column_array(table, "joints", (17, 3)),
+            "feet": column_array(table, "feet", (4, 3)), "contact": column_array(table, "contact", (2,), np.int8),
+            "planted": column_array(table, "planted", (4,), np.int8),
+            "prob": column_array(table, "contact_probability", (4,)),
+            "rot": column_array(table, "rotations_6d", (ROTATIONS, 6))}
+    clips = []
+    for clip_id in dict.fromkeys(ids):
+        rows = np.flatnonzero(ids == clip_id)
+        facts = meta["clips"][clip_id]
+        feet = None if np.isnan(cols["feet"][rows]).all() else cols["feet"][rows]
+        prob = None if np.isnan(cols["prob"][rows]).all() else cols["prob"][rows]
+        planted = cols["planted"][rows].astype(bool) if facts.get("contact_learned") else None
+        clips.append(WorldClip(str(clip_id), int(cols["track"][rows[0]]), cols["frame"][rows], cols["time"][rows],
+                               cols["joints"][rows], feet, cols["contact"][rows].astype(bool), planted, prob,
+                               cols["rot"][rows], facts))
+    return clips

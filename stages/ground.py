@@ -1,0 +1,47 @@
+"""ground stage: data/motion24 -> data/world/<segment_id>.parquet (world motion: gravity-aligned, the
+floor at y = 0, the contact-anchored root path, one skeleton per clip, planted feet pinned, rotations)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pipeline.motion.world.contact
+import pipeline.motion.world.gravity
+import pipeline.motion.world.grounding
+import pipeline.motion.world.rotations
+import pipeline.motion.world.trajectory
+import pipeline.motion.world.worldfile
+from pipeline.core.itemstage import WorkItem, run_item_stage
+from pipeline.core.params import load_params, stage_params
+from pipeline.core.paths import MOTION24, WORLD
+from pipeline.core.stage import run_stage, setup_logging
+from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta
+from pipeline.motion.world.grounding import GroundJob, ground_segment
+from pipeline.motion.world.worldfile import SCHEMA_VERSION
+
+CODE = code_fingerprint(pipeline.motion.world.grounding, pipeline.motion.world.contact, pipeline.motion.world.gravity,
+                        pipeline.motion.world.trajectory, pipeline.motion.world.rotations,
+                        pipeline.motion.world.worldfile)
+
+
+def run(root: Path) -> None:
+    params = stage_params(load_params(root / "params.yaml"), "ground")
+    items = []
+    for src in item_files(root / MOTION24):
+        inputs = {"motion24": read_meta(src).get("fingerprint", "")}
+        fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
+        out = root / WORLD / src.name
+        job = GroundJob(src, out, float(params.get("contact_threshold", 0.5)),
+                        int(params.get("min_contact_frames", 3)), params, inputs, fp)
+        items.append(WorkItem(src.stem, fp, (out,), job))
+    run_item_stage("ground", items, ground_segment, out_dirs=[root / WORLD], params=params)
+
+
+def main() -> int:
+    setup_logging()
+    return run_stage("ground", run)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
