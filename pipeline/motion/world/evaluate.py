@@ -26,7 +26,10 @@ source and over all:
   capture's moves less than 1 cm per frame at 30 fps (the capture's own beside it);
 - contact F1 of the planted flags (each point; all four pooled) and the share planted;
 - up error (degrees), planted-foot height (mm: median |height| of the truly planted points),
-  the largest limb-length CV before the one-skeleton fit and how far that fit moved the joints.
+  the largest limb-length CV before the one-skeleton fit and how far that fit moved the joints;
+- beside the medians over all runs, those over the runs that keep the feet in view (90 % of the
+  heel and toe points inside the image): looking up 10-20 degrees from a phone's or a stand's height
+  puts the feet below the frame, where a real pose model would not see them.
 
 Baseline beside each figure: the same path without the contact model (contact by the ankle rule,
 the per-frame root, the floor at the lowest foot point's 5th percentile).
@@ -59,6 +62,7 @@ CAMERAS = tuple(Camera(f"{setup}_{pitch:+g}", 72.0 * k + (36.0 if setup == "stan
                 for k, pitch in enumerate(PITCHES)
                 for setup, h, d, w, ht in (("phone", 1.2, 3.0, 1080, 1920), ("stand", 2.0, 5.0, 1920, 1080)))
 SLIDE_STILL = 0.01 * VIDEO_FPS  # m/s: WHAM's "true foot moves < 1 cm per frame" at 30 fps
+FEET_SEEN = 0.9  # a run "keeps the feet in view" when this share of heel and toe points lies inside the image
 
 
 def _similarity(source: np.ndarray, target: np.ndarray, scale: bool = True) -> tuple[float, np.ndarray, np.ndarray]:
@@ -182,6 +186,8 @@ def film_and_ground(models: LiftModels, seq: MocapSequence, camera: Camera, rng:
     path, scored with the contact model (``learned``) and without (``baseline``)."""
     body = np.concatenate([seq.h36m, seq.feet], 1)
     xy, _ = view(body, np.concatenate([seq.coco, seq.feet], 1), camera)
+    feet = xy[:, 17:]
+    in_frame = float(((feet >= 0) & (feet <= [camera.width, camera.height])).all(-1).mean())
     xy = add_pose_noise(xy, rng)
     keypoints = np.concatenate([xy, np.ones(xy.shape[:2] + (1,))], -1)
     (lifted,) = lift_clips(models, [keypoints[:, :17]], [keypoints[:, 17:]], camera.width, camera.height,
@@ -196,7 +202,7 @@ def film_and_ground(models: LiftModels, seq: MocapSequence, camera: Camera, rng:
         if name == "learned" and probability is None:
             continue
         grounded = ground_clip(clip.joints, clip.root, CORPUS_FPS, clip.feet, probability)
-        out[name] = scores(grounded, truth, grounded.root_camera, CORPUS_FPS)
+        out[name] = {**scores(grounded, truth, grounded.root_camera, CORPUS_FPS), "feet_in_frame": in_frame}
     return out
 
 
@@ -228,6 +234,11 @@ def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: 
                            **{s: medians([r for r in rows if r["source"] == s])
                               for s in dict.fromkeys(r["source"] for r in rows)},
                            "by_pitch": {f"{p:+g}": medians([r for r in rows if r["pitch"] == p]) for p in PITCHES}}
+        # Looking up from a phone's or a stand's height, the feet leave the frame (at -20 degrees on most
+        # frames): a real pose model would not see them. The runs that keep the feet in view:
+        seen = [r for r in rows if r["feet_in_frame"] >= FEET_SEEN]
+        if seen:
+            result[variant]["feet_in_view"] = {**medians(seen), "runs": len(seen), "of": len(rows)}
     return result
 
 
@@ -267,13 +278,14 @@ def format_report(result: dict) -> str:
     head = f"{'source':26s} {'variant':9s} " + " ".join(f"{name:>14s}" for name, _ in REPORT_KEYS)
     lines = [head + f" {'capture: slide':>15s} {'jitter':>7s}"]
     learned, baseline = result.get("learned", {}), result.get("baseline", {})
-    for source in [s for s in (learned or baseline) if s != "by_pitch"]:
+    for source in [s for s in (learned or baseline) if s not in ("by_pitch", "feet_in_view")] + ["feet_in_view"]:
         for variant, table in (("learned", learned), ("baseline", baseline)):
             row = table.get(source)
             if not row:
                 continue
+            label = f"feet in view ({row['runs']}/{row['of']})" if source == "feet_in_view" else source
             cells = " ".join(f"{row.get(key, float('nan')):14.3g}" for _, key in REPORT_KEYS)
-            lines.append(f"{source:26s} {variant:9s} {cells} {row.get('foot_sliding_capture_mm', float('nan')):15.3g} "
+            lines.append(f"{label:26s} {variant:9s} {cells} {row.get('foot_sliding_capture_mm', float('nan')):15.3g} "
                          f"{row.get('jitter_capture', float('nan')):7.3g}")
     by_pitch = (learned or baseline).get("by_pitch", {})
     lines.append("up error by pitch (deg): " + ", ".join(f"{p}: {r['up_deg']:.1f}" for p, r in by_pitch.items()))
