@@ -152,7 +152,8 @@ def _contact_text(contact: dict | None) -> str:
     """How contact is judged, and the contact model's held-out figures (metrics/contact.json)."""
     rule = ("A heel or toe tip is **planted** when the contact model (a small network on 1.2 s of the 2D "
             "keypoints around each frame, trained on motion capture seen by virtual cameras) gives it a "
-            "probability above 0.5 for at least 3 frames in a row. Its labels on the capture: a point within "
+            "probability above `ground.contact_threshold` (0.4) for at least `ground.min_contact_frames` (3) "
+            "frames in a row. Its labels on the capture: a point within "
             "4 cm of the floor and moving slower than 0.2 m/s. Planted points anchor the root path (no drift "
             "or depth jitter while a foot is planted), set the floor (their median height is y = 0) and stay "
             "where they were planted.")
@@ -160,7 +161,8 @@ def _contact_text(contact: dict | None) -> str:
         return rule
     every = contact["heldout"].get("all", {})
     return (rule + f" On held-out motion capture through ten cameras with noisy 2D (a pose model of expected "
-            f"OKS 0.80) its F1 is **{every.get('f1', float('nan')):.3f}** over all four points (heels "
+            f"OKS 0.80) the model's per-frame F1 at probability 0.5 is **{every.get('f1', float('nan')):.3f}** "
+            f"over all four points (heels "
             f"{every.get('f1_left_heel', float('nan')):.3f} / {every.get('f1_right_heel', float('nan')):.3f}, toes "
             f"{every.get('f1_left_toe', float('nan')):.3f} / {every.get('f1_right_toe', float('nan')):.3f}), "
             f"against {every.get('f1_all_planted', float('nan')):.3f} for calling every frame planted "

@@ -18,6 +18,8 @@ import numpy as np
 
 from pipeline.motion.world.bones import apply_skeleton, bone_length_cv, fit_skeleton
 from pipeline.motion.world.contact import (
+    MIN_PLANTED_FRAMES,
+    PLANTED_PROBABILITY,
     carry_feet,
     foot_contact,
     foot_planted,
@@ -54,7 +56,7 @@ class GroundedClip:
 
 def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float,
                 feet_cam: np.ndarray | None = None, contact_probability: np.ndarray | None = None, *,
-                threshold: float = 0.5, min_frames: int = 3) -> GroundedClip:
+                threshold: float = PLANTED_PROBABILITY, min_frames: int = MIN_PLANTED_FRAMES) -> GroundedClip:
     """Camera-frame root-relative joints (T x 17 x 3), the root path (T x 3 or None), the heels
     and toe tips (T x 4 x 3, like the joints, or None) and their contact probabilities (T x 4 or
     None; a point is planted above ``threshold`` for ``min_frames`` frames in a row)."""
