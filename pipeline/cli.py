@@ -66,7 +66,12 @@ def _parser() -> argparse.ArgumentParser:
                                         "(checked as the trim stage checks). Loopback only unless --host says "
                                         "otherwise.")
     review.add_argument("--port", type=int, default=8765)
-    review.add_argument("--host", default="127.0.0.1", help="interface to listen on (default: loopback only)")
+    review.add_argument("--host", default="127.0.0.1",
+                        help="interface to listen on (default: loopback only). Any other (e.g. 0.0.0.0 for a "
+                             "team on a lab server) requires a token, printed in the start-up addresses "
+                             "(or taken from $DANCE3D_REVIEW_TOKEN)")
+    review.add_argument("--token", action="store_true",
+                        help="require the token on loopback too (always required elsewhere)")
     review.add_argument("--mode", choices=("tracks", "trim"), default="tracks",
                         help="the page to print first (both are served)")
     retry = sub.add_parser("retry", help="re-run only the items a stage recorded as failed",
@@ -379,16 +384,22 @@ def _qc(root: Path, args: argparse.Namespace) -> int:
 
 def _review(root: Path, args: argparse.Namespace) -> int:
     from pipeline.annotate.commands import proposal_options
+    from pipeline.annotate.review.access import choose_token
     from pipeline.annotate.review.server import ReviewApp, serve
     from pipeline.core.params import load_params, stage_params
 
     params = load_params(root / "params.yaml")
-    app = ReviewApp(root, proposal_options(params), float(stage_params(params, "clean").get("min_clip_seconds", 2.0)))
+    token = choose_token(args.host, args.token)
+    app = ReviewApp(root, proposal_options(params), float(stage_params(params, "clean").get("min_clip_seconds", 2.0)),
+                    token)
     server = serve(app, args.host, args.port)
-    base = f"http://{args.host}:{server.server_address[1]}"
-    pages = [f"{base}/trim  (trim videos)", f"{base}/  (clean tracks)"]
+    host = f"[{args.host}]" if ":" in args.host else args.host
+    base = f"http://{host}:{server.server_address[1]}"
+    login = f"?token={token}" if token else ""
+    pages = [f"{base}/trim{login}  (trim videos)", f"{base}/{login}  (clean tracks)"]
     print("dance3d review: " + "\n                ".join(pages if args.mode == "trim" else pages[::-1])
-          + "\n(Ctrl+C to stop)")
+          + ("\n(the token is needed once per browser; share these addresses only with your annotators)"
+             if token else "") + "\n(Ctrl+C to stop)", flush=True)
     try:
         server.serve_forever()
     except KeyboardInterrupt:

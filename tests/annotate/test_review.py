@@ -177,7 +177,11 @@ def test_browser_edit_save_round_trip(site, tmp_path: Path) -> None:
         browser.find_element(By.CSS_SELECTOR, "#rows tbody tr[data-index='1'] td.reason").click()
         browser.find_element(By.ID, "toggle").click()
         browser.find_element(By.ID, "save").click()
+        # The first save asks the annotator's name once (kept in the browser, logged with each save).
+        wait.until(lambda b: b.switch_to.alert).send_keys("Ana")
+        browser.switch_to.alert.accept()
         wait.until(lambda b: b.find_element(By.ID, "state").text == "saved")
+        assert browser.find_element(By.ID, "annotator").get_attribute("value") == "Ana"
         artifacts = Path(os.environ.get("DANCE3D_ARTIFACTS", tmp_path))
         artifacts.mkdir(parents=True, exist_ok=True)
         browser.save_screenshot(str(artifacts / "review_page.png"))
@@ -186,3 +190,4 @@ def test_browser_edit_save_round_trip(site, tmp_path: Path) -> None:
     lines = [ln for ln in (root / "manifests/tracks/vid_000.csv").read_text().splitlines() if not ln.startswith("#")]
     rows = [ln.split(",")[:4] for ln in lines[1:]]
     assert rows == [["1", "0.000", "6.000", "yes"], ["2", "2.000", "5.958", "no"]]
+    assert ",manifests/tracks/vid_000.csv,Ana," in (root / "manifests/review_log.csv").read_text()

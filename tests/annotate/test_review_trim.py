@@ -153,10 +153,12 @@ def test_browser_split_delete_add_save_and_an_inline_error(trim_site, tmp_path: 
         seek(1.5)
         body.send_keys("]")                      # ... and end it at 1.5 s
         assert rows() == [("0.500", "1.500"), ("2.000", "6.000")]
+        browser.find_element(By.ID, "annotator").send_keys("Bo")  # the name field in the header
         browser.find_element(By.ID, "save").click()
         wait.until(lambda b: b.find_element(By.ID, "state").text == "saved")
         saved = (root / "annotations/segments.csv").read_text()
         assert saved == OTHER_LINES + "vid,0.500,1.500,dance,\nvid,2.000,6.000,,\n"
+        assert ",annotations/segments.csv,Bo," in (root / "manifests/review_log.csv").read_text()
 
         start = browser.find_element(By.CSS_SELECTOR, "#rows tbody tr[data-index='1'] [data-field=start]")
         start.send_keys(Keys.CONTROL, "a")

@@ -15,11 +15,15 @@ Trim mode (the dance segments of each download, annotations/segments.csv):
   GET  /api/videos/<id>         its rows (or the proposals), proposals, shots, per-second cues, version
   PUT  /api/videos/<id>         replace its rows: checked like the trim stage, atomic, 409 when stale
   GET  /raw/<id>                the downloaded video (range requests)
+
+Off loopback (or with ``--token``) every route needs the token cookie, and writes the server's own
+Origin (``access.py``); ``/?token=…`` sets the cookie. Saves are logged with the annotator's name.
 """
 
 from __future__ import annotations
 
 import hashlib
+import hmac
 import json
 import logging
 import re
@@ -28,6 +32,7 @@ import threading
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
+from urllib.parse import parse_qs
 
 from pipeline.annotate.manifests import (
     INFO,
@@ -38,10 +43,17 @@ from pipeline.annotate.manifests import (
     write_manifest,
 )
 from pipeline.annotate.proposals import ProposalOptions, propose, track_stats
+from pipeline.annotate.review.access import (
+    SaveLog,
+    cookie_header,
+    has_token_cookie,
+    same_origin,
+    unauthorised_page,
+)
 from pipeline.annotate.review.trimming import TrimModel
 from pipeline.core.errors import Dance3dError
 from pipeline.core.ids import is_safe_id
-from pipeline.core.paths import TRACK_MANIFESTS, TRACKS
+from pipeline.core.paths import ANNOTATIONS, TRACK_MANIFESTS, TRACKS
 from pipeline.core.storage import item_files
 from pipeline.pose.trackfile import read_tracks
 
@@ -56,8 +68,11 @@ VIDEO_TYPES = {".mp4": "video/mp4", ".m4v": "video/mp4", ".mov": "video/mp4", ".
 class ReviewApp:
     """What the handler needs: the project, the proposal options and the checker's settings."""
 
-    def __init__(self, root: Path, proposals: ProposalOptions, min_clip_seconds: float) -> None:
+    def __init__(self, root: Path, proposals: ProposalOptions, min_clip_seconds: float,
+                 token: str | None = None) -> None:
         self.root = Path(root).resolve()
+        self.token = token  # None: open (loopback); else every request needs it (access.py)
+        self.log = SaveLog(self.root)
         self.proposals = proposals
         self.min_clip_seconds = min_clip_seconds
         self.lock = threading.Lock()  # one save at a time
@@ -131,8 +146,9 @@ class ReviewApp:
         with self.lock:
             current = self.version(seg_id)
             if body.get("version", "") != current:
-                return HTTPStatus.CONFLICT, {"error": "the manifest changed on disk since this page loaded: reload "
-                                                      "it (your edits here are not saved)", "version": current}
+                who = self.log.who_changed(self._relative(self.manifest_path(seg_id)), current)
+                return HTTPStatus.CONFLICT, {"error": f"the manifest changed on disk since this page loaded{who}: "
+                                                      "reload it (your edits here are not saved)", "version": current}
             try:
                 spans = [_span(r) for r in body.get("rows", [])]
             except (KeyError, TypeError, ValueError) as exc:
@@ -150,7 +166,23 @@ class ReviewApp:
                     return HTTPStatus.UNPROCESSABLE_ENTITY, {"error": "not saved: the manifest has errors",
                                                              "problems": problems}
                 write_manifest(path, spans, fingerprint)
-            return HTTPStatus.OK, {"version": self.version(seg_id), "problems": problems}
+            version = self.version(seg_id)
+            self.log.record(self._relative(path), body.get("annotator", ""), version)
+            return HTTPStatus.OK, {"version": version, "problems": problems}
+
+    def save_trim(self, video_id: str, body: dict) -> tuple[int, dict]:
+        """The trim page's save (``TrimModel.save``), logged with its annotator; a stale one names who saved."""
+        status, payload = self.trim.save(video_id, body)
+        if status == HTTPStatus.OK and not payload.get("unchanged"):
+            self.log.record(str(ANNOTATIONS), body.get("annotator", ""), payload["version"])
+        elif status == HTTPStatus.CONFLICT:
+            who = self.log.who_changed(str(ANNOTATIONS), payload["version"])
+            payload = {**payload, "error": payload["error"].replace(" since this page loaded",
+                                                                    f" since this page loaded{who}", 1)}
+        return status, payload
+
+    def _relative(self, path: Path) -> str:
+        return str(path.relative_to(self.root))
 
 
 def _row(span: Span) -> dict:
@@ -218,7 +250,32 @@ def make_handler(app: ReviewApp) -> type[BaseHTTPRequestHandler]:
             video_id = match.group(1)
             return video_id if is_safe_id(video_id) and app.trim.video_file(video_id) else None
 
+        def _admitted(self) -> bool:
+            """With a token: the cookie (or ``?token=`` once, answered with the cookie and a redirect),
+            and the server's own Origin on writes. False when the refusal has been sent."""
+            if app.token is None:
+                return True
+            path, _, query = self.path.partition("?")
+            given = parse_qs(query).get("token")
+            if given is not None and self.command in ("GET", "HEAD"):
+                if hmac.compare_digest(given[0].encode(), app.token.encode()):
+                    self._send(HTTPStatus.SEE_OTHER, b"", "text/plain",
+                               {"Location": path or "/", "Set-Cookie": cookie_header(app.token)})
+                else:
+                    self._send(HTTPStatus.UNAUTHORIZED, unauthorised_page(), STATIC_TYPES[".html"])
+                return False
+            if not has_token_cookie(self.headers.get("Cookie", ""), app.token):
+                self._send(HTTPStatus.UNAUTHORIZED, unauthorised_page(), STATIC_TYPES[".html"])
+                return False
+            if self.command not in ("GET", "HEAD") and not same_origin(self.headers.get("Origin"),
+                                                                      self.headers.get("Host")):
+                self._json(HTTPStatus.FORBIDDEN, {"error": "a write must come from this server's own page"})
+                return False
+            return True
+
         def do_GET(self) -> None:  # noqa: N802 (http.server's naming)
+            if not self._admitted():
+                return
             path = self.path.split("?", 1)[0]
             if path == "/" or (path.startswith("/segment/") and self._segment_id(_PAGE.fullmatch(path))):
                 return self._send(HTTPStatus.OK, (STATIC / "index.html").read_bytes(), STATIC_TYPES[".html"])
@@ -255,7 +312,13 @@ def make_handler(app: ReviewApp) -> type[BaseHTTPRequestHandler]:
 
         do_HEAD = do_GET
 
+        def do_POST(self) -> None:  # noqa: N802 (no route takes POST; refused like any write first)
+            if self._admitted():
+                self._not_found()
+
         def do_PUT(self) -> None:  # noqa: N802
+            if not self._admitted():
+                return
             path = self.path.split("?", 1)[0]
             seg_id = self._segment_id(_SEGMENT.fullmatch(path))
             video_id = None if seg_id else self._video_id(_VIDEO.fullmatch(path))
@@ -266,7 +329,7 @@ def make_handler(app: ReviewApp) -> type[BaseHTTPRequestHandler]:
                 body = json.loads(self.rfile.read(length) or b"{}")
             except json.JSONDecodeError as exc:
                 return self._json(HTTPStatus.BAD_REQUEST, {"error": f"not JSON: {exc}"})
-            status, payload = app.save(seg_id, body) if seg_id else app.trim.save(video_id, body)
+            status, payload = app.save(seg_id, body) if seg_id else app.save_trim(video_id, body)
             self._json(status, payload)
 
         def _video(self, path: Path, content_type: str = "video/mp4") -> None:

@@ -134,7 +134,7 @@ const actions = {
     setState("saving…", true);
     const { status, body } = await api(`/api/segments/${state.seg.id}`, {
       method: "PUT", headers: { "Content-Type": "application/json" },
-      body: JSON.stringify({ version: state.version, rows: state.rows }),
+      body: JSON.stringify({ version: state.version, rows: state.rows, annotator: annotator() }),
     });
     if (status === 200) {
       state.version = body.version;

@@ -8,8 +8,36 @@ const $ = (sel) => document.querySelector(sel);
 async function api(path, options) {
   const res = await fetch(path, options);
   const body = await res.json().catch(() => ({}));
+  if (res.status === 401) {
+    body.error = "not signed in: open the address with ?token=… that the server printed when it started";
+  }
   return { status: res.status, body };
 }
+
+// The annotator's name, asked once and kept in this browser: every save is logged with it
+// (manifests/review_log.csv), and a stale save names who changed the file.
+const NAME_KEY = "dance3d.annotator";
+
+function setupAnnotator() {
+  const field = $("#annotator");
+  field.value = localStorage.getItem(NAME_KEY) || "";
+  field.classList.toggle("ask", !field.value);
+  field.onchange = () => {
+    localStorage.setItem(NAME_KEY, field.value.trim());
+    field.classList.toggle("ask", !field.value.trim());
+  };
+}
+
+function annotator() {
+  let name = localStorage.getItem(NAME_KEY) || "";
+  if (!name) {
+    name = (prompt("Your name (recorded with each save):") || "").trim();
+    if (name) { localStorage.setItem(NAME_KEY, name); $("#annotator").value = name; $("#annotator").classList.remove("ask"); }
+  }
+  return name;
+}
+
+document.addEventListener("DOMContentLoaded", setupAnnotator);
 
 function setState(text, ok) { const s = $("#state"); s.textContent = text; s.className = ok ? "ok" : "bad"; }
 

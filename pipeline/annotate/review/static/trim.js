@@ -173,7 +173,7 @@ const actions = {
     const rows = state.rows.map((r) => ({ start: r.start, end: r.end, label: r.label || "", note: r.note || "" }));
     const { status, body } = await api(`/api/videos/${state.video.id}`, {
       method: "PUT", headers: { "Content-Type": "application/json" },
-      body: JSON.stringify({ version: state.version, rows }),
+      body: JSON.stringify({ version: state.version, rows, annotator: annotator() }),
     });
     state.problems = body.problems || [];
     if (status === 200) {
