@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import logging
 import sys
-from dataclasses import fields
 from pathlib import Path
 
 from pipeline.core.errors import InputError
 from pipeline.core.params import load_params, stage_params, with_profile
 from pipeline.core.paths import CONTACT_MODEL, METRICS
 from pipeline.core.stage import run_stage, setup_logging
+from pipeline.motion.shipped import config_from_params as shipped_config
 from pipeline.motion.shipped import copy_shipped, mocap_root, recorded_metrics, write_training_outputs
 
 log = logging.getLogger("dance3d.train_contact")
@@ -27,10 +27,7 @@ def config_from_params(params: dict):
     from pipeline.motion.lifting.data import AugmentOptions
     from pipeline.motion.world.contact_train import ContactConfig
 
-    known = {f.name for f in fields(ContactConfig)} - {"augment"}
-    values = {k: tuple(v) if isinstance(v, list) else v for k, v in params.items() if k in known}
-    augment = {k: tuple(v) if isinstance(v, list) else v for k, v in (params.get("augment") or {}).items()}
-    return ContactConfig(**values, augment=AugmentOptions(**augment))
+    return shipped_config(ContactConfig, params, AugmentOptions)
 
 
 def _write_outputs(root: Path, metrics: dict, losses: list[float]) -> None:

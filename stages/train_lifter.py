@@ -11,13 +11,13 @@ from __future__ import annotations
 
 import logging
 import sys
-from dataclasses import fields
 from pathlib import Path
 
 from pipeline.core.errors import InputError
 from pipeline.core.params import load_params, stage_params, with_profile
 from pipeline.core.paths import LIFTER, METRICS
 from pipeline.core.stage import run_stage, setup_logging
+from pipeline.motion.shipped import config_from_params as shipped_config
 from pipeline.motion.shipped import copy_shipped, mocap_root, recorded_metrics, write_training_outputs
 
 log = logging.getLogger("dance3d.train_lifter")
@@ -28,10 +28,7 @@ def config_from_params(params: dict):
     from pipeline.motion.lifting.data import AugmentOptions
     from pipeline.motion.lifting.train import LifterConfig
 
-    known = {f.name for f in fields(LifterConfig)} - {"augment"}
-    values = {k: tuple(v) if isinstance(v, list) else v for k, v in params.items() if k in known}
-    augment = {k: tuple(v) if isinstance(v, list) else v for k, v in (params.get("augment") or {}).items()}
-    return LifterConfig(**values, augment=AugmentOptions(**augment))
+    return shipped_config(LifterConfig, params, AugmentOptions)
 
 
 def _write_outputs(root: Path, metrics: dict, losses_mm: list[float]) -> None:

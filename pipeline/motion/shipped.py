@@ -4,9 +4,11 @@ training stage writes (the model, its held-out figures, its loss curve)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import shutil
+import subprocess
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -48,3 +50,34 @@ def copy_shipped(shipped: Path, dest: Path) -> dict[str, str]:
 
 def recorded_metrics(meta: Mapping[str, str]) -> dict:
     return {**json.loads(meta["metrics"]), "shipped": True}
+
+
+def config_from_params(config_class, params: Mapping, augment_class=None):
+    """A training config dataclass from a params section (lists become tuples; ``augment`` nested)."""
+    known = {f.name for f in dataclasses.fields(config_class)} - {"augment"}
+    values = {k: tuple(v) if isinstance(v, list) else v for k, v in params.items() if k in known}
+    if augment_class is not None:
+        augment = {k: tuple(v) if isinstance(v, list) else v for k, v in (params.get("augment") or {}).items()}
+        values["augment"] = augment_class(**augment)
+    return config_class(**values)
+
+
+def git_commit() -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
+                              text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def training_provenance(cfg, train: list, val: list, mocap: Path, metrics: dict, steps: int,
+                        code_fingerprint: str) -> dict[str, str]:
+    """What made a shipped model, for its ONNX metadata: the capture (minutes per source, the
+    held-out sequences), every parameter, the commit and code, the held-out figures."""
+    minutes: dict[str, float] = {}
+    for seq in train:
+        minutes[seq.source] = round(minutes.get(seq.source, 0.0) + seq.frames / seq.fps / 60, 2)
+    return {"trained_on": json.dumps({"mocap": mocap.name, "train_minutes_per_source": minutes,
+                                      "train_sequences": len(train), "heldout": [s.name for s in val]}),
+            "params": json.dumps(dataclasses.asdict(cfg)), "git_commit": git_commit(),
+            "code_fingerprint": code_fingerprint, "steps": str(steps), "metrics": json.dumps(metrics)}

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import logging
 import time
 from dataclasses import dataclass, field
@@ -137,29 +136,17 @@ def evaluate(model: TemporalModel, val: list[MocapSequence], cfg: LifterConfig) 
 
 def provenance(cfg: LifterConfig, train: list[MocapSequence], val: list[MocapSequence], result: TrainResult,
                mocap: Path) -> dict:
-    """What made a lifter, for its ONNX metadata: data, params, code, figures."""
-    import dataclasses
-    import subprocess
+    """What made a lifter, for its ONNX metadata: data, params, code, figures, the loss curve (mm)."""
     import sys
 
     from pipeline.core.storage import code_fingerprint
     from pipeline.motion.lifting import data, evaluate, model
     from pipeline.motion.mocap import markers, sources
+    from pipeline.motion.shipped import training_provenance
 
-    minutes: dict[str, float] = {}
-    for seq in train:
-        minutes[seq.source] = round(minutes.get(seq.source, 0.0) + seq.frames / seq.fps / 60, 2)
-    try:
-        commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=Path(__file__).parent, capture_output=True,
-                                text=True, check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        commit = "unknown"
     curve = result.losses[:: max(1, len(result.losses) // 200)]
-    return {"trained_on": json.dumps({"mocap": mocap.name, "train_minutes_per_source": minutes,
-                                      "train_sequences": len(train), "heldout": [s.name for s in val]}),
-            "params": json.dumps(dataclasses.asdict(cfg)), "git_commit": commit,
-            "code_fingerprint": code_fingerprint(model, data, sys.modules[__name__], evaluate, sources, markers),
-            "steps": len(result.losses), "metrics": json.dumps(result.metrics),
+    code = code_fingerprint(model, data, sys.modules[__name__], evaluate, sources, markers)
+    return {**training_provenance(cfg, train, val, mocap, result.metrics, len(result.losses), code),
             "loss_curve_mm": ",".join(f"{1000 * x:.2f}" for x in curve)}
 
 
