@@ -25,14 +25,20 @@ def grid_frames(t_first: float, t_last: float, fps: float = TARGET_FPS) -> np.nd
     return np.arange(first, last + 1, dtype=np.int64)
 
 
+def interpolate_linear(at: np.ndarray, times: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``values`` (T x ...) given at ``times``, linearly interpolated at ``at``, every channel apart
+    (held at the ends)."""
+    flat = np.asarray(values).reshape(len(values), -1)
+    out = np.stack([np.interp(at, times, flat[:, c]) for c in range(flat.shape[1])], -1)
+    return out.reshape((len(at),) + np.shape(values)[1:])
+
+
 def resample_cubic(times: np.ndarray, values: np.ndarray, fps: float = TARGET_FPS) -> tuple[np.ndarray, np.ndarray]:
     """Resample ``values`` (T x ...) given at ``times`` to the ``fps`` grid: (frame numbers, values)."""
     frames = grid_frames(float(times[0]), float(times[-1]), fps)
     new_times = np.clip(frames / fps, times[0], times[-1])
     if len(times) < 4:  # too short for a cubic: linear
-        flat = values.reshape(len(values), -1)
-        out = np.column_stack([np.interp(new_times, times, flat[:, c]) for c in range(flat.shape[1])])
-        return frames, out.reshape((len(frames),) + values.shape[1:])
+        return frames, interpolate_linear(new_times, times, values)
     spline = CubicSpline(times, values, axis=0, bc_type="not-a-knot")
     return frames, spline(new_times)
 
@@ -61,8 +67,7 @@ def resample_clip(clip, fps: float):
     root = None if clip.root is None else resample_cubic(clip.time, clip.root, fps)[1].astype(np.float32)
     feet = None if clip.feet is None else resample_cubic(clip.time, clip.feet, fps)[1].astype(np.float32)
     at = np.clip(frames / fps, clip.time[0], clip.time[-1])
-    contact = None if clip.contact is None else np.stack(
-        [np.interp(at, clip.time, clip.contact[:, k]) for k in range(clip.contact.shape[1])], -1).astype(np.float32)
+    contact = None if clip.contact is None else interpolate_linear(at, clip.time, clip.contact).astype(np.float32)
     return MotionClip(clip.clip_id, clip.track_id, frames, frames / fps, joints.astype(np.float32),
                       clip.interpolated[near], clip.filled_joints[near], root, feet, contact)
 

@@ -15,13 +15,18 @@ def normalise_centred(xy: np.ndarray, window: int) -> np.ndarray:
     image: the root-mean-square distance of the keypoints from their centre, median-filtered
     over ``window`` frames (the receptive field), so the scale follows a dancer who comes nearer
     but not a pose that opens its arms. Camera, framing and person size no longer reach the model."""
+    centre = (xy[:, 11] + xy[:, 12]) / 2
+    return (xy - centre[:, None]) / np.maximum(body_size(xy, window), 1e-6)[:, None, None]
+
+
+def body_size(xy: np.ndarray, window: int) -> np.ndarray:
+    """Per frame, the root-mean-square distance of the 17 body keypoints (with or without the feet
+    after them) from their centre, median-filtered over ``window`` frames."""
     from scipy.ndimage import median_filter
 
-    centre = (xy[:, 11] + xy[:, 12]) / 2
-    body = xy[:, :17]  # the body's size, with or without the feet after it
+    body = xy[:, :17]
     spread = np.sqrt(((body - body.mean(1, keepdims=True)) ** 2).sum(-1).mean(-1))
-    size = median_filter(spread, size=max(1, min(window, len(spread))), mode="nearest")
-    return (xy - centre[:, None]) / np.maximum(size, 1e-6)[:, None, None]
+    return median_filter(spread, size=max(1, min(window, len(spread))), mode="nearest")
 
 
 def normalise(xy: np.ndarray, width: float, height: float, method: str, window: int) -> np.ndarray:

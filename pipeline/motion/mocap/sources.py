@@ -330,9 +330,9 @@ def resample(seq: MocapSequence, fps: float) -> MocapSequence:
     t_new = np.arange(0, t_src[-1] + 1e-9, 1 / fps)
 
     def interp(x: np.ndarray) -> np.ndarray:
-        flat = x.reshape(len(x), -1)
-        return np.stack([np.interp(t_new, t_src, flat[:, c]) for c in range(flat.shape[1])], -1).reshape(
-            (len(t_new),) + x.shape[1:])
+        from pipeline.motion.resample import interpolate_linear
+
+        return interpolate_linear(t_new, t_src, x)
 
     return MocapSequence(seq.name, seq.source, fps, interp(seq.h36m), interp(seq.coco),
                          None if seq.feet is None else interp(seq.feet))

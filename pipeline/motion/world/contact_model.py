@@ -17,21 +17,14 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from scipy.ndimage import median_filter
 
+from pipeline.motion.lifting.geometry import body_size
 from pipeline.motion.mocap.skeleton import COCO21_FLIP
+from pipeline.motion.resample import interpolate_linear
 
 FPS = 25.0        # the model's frame rate (the lifter's training rate)
 HALF = 15         # frames each side of the scored frame
 FLIP_OUT = (1, 0, 3, 2)  # heels and toes, left and right swapped (skeleton.FEET order)
-
-
-def body_size(xy: np.ndarray, window: int = 2 * HALF + 1) -> np.ndarray:
-    """Per frame, the root-mean-square distance of the 17 body keypoints from their centre,
-    median-filtered over ``window`` frames (as the lifter's centred normalisation)."""
-    body = xy[:, :17]
-    spread = np.sqrt(((body - body.mean(1, keepdims=True)) ** 2).sum(-1).mean(-1))
-    return median_filter(spread, size=max(1, min(window, len(spread))), mode="nearest")
 
 
 def features(xy: np.ndarray, centres: np.ndarray | None = None) -> np.ndarray:
@@ -39,7 +32,7 @@ def features(xy: np.ndarray, centres: np.ndarray | None = None) -> np.ndarray:
     the frames around it (edge-padded) about its hips, divided by its body size."""
     xy = np.asarray(xy, np.float64)
     centres = np.arange(len(xy)) if centres is None else np.asarray(centres)
-    size = np.maximum(body_size(xy), 1e-6)
+    size = np.maximum(body_size(xy, 2 * HALF + 1), 1e-6)
     hips = (xy[:, 11] + xy[:, 12]) / 2
     padded = np.concatenate([np.repeat(xy[:1], HALF, 0), xy, np.repeat(xy[-1:], HALF, 0)])
     idx = centres[:, None] + np.arange(2 * HALF + 1)[None]
@@ -52,10 +45,7 @@ def resample_keypoints(xy: np.ndarray, fps: float, rate: float = FPS) -> tuple[n
     if abs(fps - rate) < 1e-6 or len(xy) < 2:
         return xy, np.arange(len(xy), dtype=np.float64)
     at = np.arange(0, len(xy) - 1 + 1e-9, fps / rate)
-    flat = xy.reshape(len(xy), -1)
-    frames = np.arange(len(xy))
-    out = np.stack([np.interp(at, frames, flat[:, c]) for c in range(flat.shape[1])], -1)
-    return out.reshape(len(at), *xy.shape[1:]), at
+    return interpolate_linear(at, np.arange(len(xy)), xy), at
 
 
 class ContactModel:
@@ -105,9 +95,7 @@ class ContactModel:
             mirrored = (at_rate * np.array([-1.0, 1.0]))[:, list(COCO21_FLIP)]
             logits = (logits + self._logits(mirrored)[:, list(FLIP_OUT)]) / 2
         prob = 1 / (1 + np.exp(-logits.astype(np.float64)))
-        frames = np.arange(len(xy), dtype=np.float64)
-        back = np.stack([np.interp(frames, times, prob[:, k]) for k in range(4)], -1)
-        return back.astype(np.float32)
+        return interpolate_linear(np.arange(len(xy), dtype=np.float64), times, prob).astype(np.float32)
 
 
 def load_contact_model(path: Path, threads: int = 1) -> ContactModel:

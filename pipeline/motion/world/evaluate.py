@@ -47,7 +47,7 @@ from pipeline.motion.lifting.evaluate import Camera, add_pose_noise, camera_pose
 from pipeline.motion.lifting.infer import LiftModels, lift_clips
 from pipeline.motion.mocap.sources import MocapSequence, first_seconds, load_folder, resample
 from pipeline.motion.motionfile import MotionClip
-from pipeline.motion.resample import resample_clip
+from pipeline.motion.resample import interpolate_linear, resample_clip
 from pipeline.motion.smoothing import smooth_clip
 from pipeline.motion.world.contact import capture_contact, standing_level
 from pipeline.motion.world.gravity import up_error_deg
@@ -134,12 +134,7 @@ def _truth(seq: MocapSequence, camera: Camera, times: np.ndarray) -> Truth:
     level = standing_level(seq.feet, seq.fps)
     t_src = np.arange(seq.frames) / seq.fps
 
-    def at(x: np.ndarray) -> np.ndarray:
-        flat = x.reshape(len(x), -1)
-        return np.stack([np.interp(times, t_src, flat[:, c]) for c in range(flat.shape[1])], -1).reshape(
-            (len(times),) + x.shape[1:])
-
-    joints, feet = at(seq.h36m), at(seq.feet)
+    joints, feet = interpolate_linear(times, t_src, seq.h36m), interpolate_linear(times, t_src, seq.feet)
     planted = capture_contact(seq.feet, seq.fps, level)
     near = np.clip(np.rint(times * seq.fps).astype(int), 0, seq.frames - 1)
     rotation, position = camera_pose(seq.h36m, camera)
@@ -154,7 +149,7 @@ def scores(grounded: GroundedClip, truth: Truth, root_cam: np.ndarray | None, fp
     row = {"w_mpjpe100_mm": w_mpjpe(pred, truth.joints), "wa_mpjpe100_mm": w_mpjpe(pred, truth.joints, whole=True),
            "rte_percent": rte_percent(pred[:, 0], truth.joints[:, 0]),
            "jitter": jitter(pred, fps), "jitter_capture": jitter(truth.joints, fps),
-           "up_deg": up_error_deg(_camera_of(grounded), truth.up_cam),
+           "up_deg": up_error_deg(grounded.camera, truth.up_cam),
            "cv_before": grounded.cv_before, "fit_moved_mm": 1000 * grounded.fit_moved}
     if root_cam is not None:
         row["root_aligned_mm"] = 1000 * float(np.linalg.norm(align_scale_offset(root_cam, truth.root_cam)
@@ -172,12 +167,6 @@ def scores(grounded: GroundedClip, truth: Truth, root_cam: np.ndarray | None, fp
         row["planted_share"] = float(planted.mean())
         row["planted_share_capture"] = float(truth.planted.mean())
     return row
-
-
-def _camera_of(grounded: GroundedClip):
-    from pipeline.motion.world.gravity import CameraEstimate
-
-    return CameraEstimate(grounded.camera_rotation, grounded.pitch_deg, grounded.roll_deg)
 
 
 def film_and_ground(models: LiftModels, seq: MocapSequence, camera: Camera, rng: np.random.Generator,
