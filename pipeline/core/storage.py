@@ -132,6 +132,18 @@ def read_meta(path: Path) -> dict[str, Any]:
     return json.loads(raw) if raw else {}
 
 
+def require_schema(path: Path, version: int, what: str, fix: str) -> dict[str, Any]:
+    """The file's dance3d metadata, when it was written at ``version`` of its contract; otherwise
+    an InputError naming the file, both versions and ``fix``."""
+    from pipeline.core.errors import InputError
+
+    meta = read_meta(path)
+    if meta.get("schema_version") != version:
+        raise InputError(path, f"{what} schema {meta.get('schema_version')}, this dance3d reads schema {version}: "
+                               f"{fix}")
+    return meta
+
+
 def fixed_list(values: np.ndarray, inner: pa.DataType = pa.float32()) -> pa.Array:
     """A (rows x d) numpy array as an Arrow fixed-size list column (the contracts' tensor form)."""
     values = np.asarray(values)

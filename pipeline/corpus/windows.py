@@ -143,10 +143,7 @@ def windows_table(windows: list[Window], window: int) -> pa.Table:
 
 def check_schema(path) -> None:
     """Refuse a shard written by another corpus schema, naming it and what to do."""
-    from pipeline.core.errors import InputError
-    from pipeline.core.storage import read_meta
+    from pipeline.core.storage import require_schema
 
-    version = read_meta(path).get("schema_version")
-    if version != SCHEMA_VERSION:
-        raise InputError(path, f"corpus schema {version}, this dance3d reads schema {SCHEMA_VERSION}: rebuild the "
-                               "corpus with `dvc repro shard` (or install the dance3d that wrote it)")
+    require_schema(path, SCHEMA_VERSION, "corpus", "rebuild the corpus with `dvc repro shard` (or install the "
+                                                   "dance3d that wrote it)")

@@ -27,6 +27,31 @@ def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
 
 
+def _drop_short(flags: np.ndarray, min_frames: int) -> np.ndarray:
+    """T x K flags with every run shorter than ``min_frames`` frames cleared (a blip is not a step)."""
+    for k in range(flags.shape[1]):
+        for a, b in _runs(flags[:, k]):
+            if b - a < min_frames:
+                flags[a:b, k] = False
+    return flags
+
+
+def _ease(n: int, a: int, b: int, ease: int) -> tuple[int, int, np.ndarray]:
+    """The frames ``lo:hi`` a contact ``a:b`` acts on, and its weight there: 1 inside, ramping over
+    ``ease`` frames on either side."""
+    lo, hi = max(0, a - ease), min(n, b + ease)
+    ramp = np.ones(hi - lo)
+    ramp[: a - lo] = np.arange(1, a - lo + 1) / (a - lo + 1)
+    ramp[len(ramp) - (hi - b):] = np.arange(hi - b, 0, -1) / (hi - b + 1)
+    return lo, hi, ramp
+
+
+def _leg_lengths(world: np.ndarray, hip: int, knee: int, ankle: int) -> tuple[float, float]:
+    """The clip's median thigh and shin lengths."""
+    return (float(np.median(np.linalg.norm(world[:, knee] - world[:, hip], axis=-1))),
+            float(np.median(np.linalg.norm(world[:, ankle] - world[:, knee], axis=-1))))
+
+
 def horizontal_speed(world: np.ndarray, fps: float) -> np.ndarray:
     """T x 2 horizontal ankle speeds (m/s), left and right."""
     xz = world[:, list(ANKLES)][..., [0, 2]]
@@ -48,12 +73,7 @@ def foot_contact(world: np.ndarray, fps: float, height: float = 0.10, speed: flo
         point = np.take_along_axis(pick, lower[..., None, None], axis=2)[:, :, 0]  # T x 2 x 3
         low = point[..., 1] < FOOT_POINT_HEIGHT + feet_height
         moving = np.linalg.norm(np.gradient(point[..., [0, 2]], axis=0), axis=-1) * fps
-    contact = low & (moving < speed)
-    for foot in range(2):
-        for a, b in _runs(contact[:, foot]):
-            if b - a < min_frames:
-                contact[a:b, foot] = False
-    return contact
+    return _drop_short(low & (moving < speed), min_frames)
 
 
 def skating(world: np.ndarray, contact: np.ndarray, fps: float) -> float:
@@ -79,17 +99,13 @@ def pin_feet(world: np.ndarray, contact: np.ndarray, ease: int = 3) -> np.ndarra
     """World motion with each contact's ankle held at the contact's median horizontal position."""
     out = world.copy()
     for foot, (hip, knee, ankle) in enumerate(LEGS):
-        thigh = float(np.median(np.linalg.norm(world[:, knee] - world[:, hip], axis=-1)))
-        shin = float(np.median(np.linalg.norm(world[:, ankle] - world[:, knee], axis=-1)))
+        thigh, shin = _leg_lengths(world, hip, knee, ankle)
         target = world[:, ankle].copy()
         weight = np.zeros(len(world))
         for a, b in _runs(contact[:, foot]):
             anchor = np.median(world[a:b, ankle][:, [0, 2]], axis=0)
-            lo, hi = max(0, a - ease), min(len(world), b + ease)
+            lo, hi, ramp = _ease(len(world), a, b, ease)
             target[lo:hi, 0], target[lo:hi, 2] = anchor[0], anchor[1]
-            ramp = np.ones(hi - lo)
-            ramp[: a - lo] = np.arange(1, a - lo + 1) / (a - lo + 1)
-            ramp[len(ramp) - (hi - b):] = np.arange(hi - b, 0, -1) / (hi - b + 1)
             weight[lo:hi] = np.maximum(weight[lo:hi], ramp)
         goal = world[:, ankle] + weight[:, None] * (target - world[:, ankle])
         moved = weight > 0
@@ -109,12 +125,7 @@ def planted_points(probability: np.ndarray, threshold: float = PLANTED_PROBABILI
                    min_frames: int = MIN_PLANTED_FRAMES) -> np.ndarray:
     """T x 4 planted flags from contact probabilities (heels and toe tips): above ``threshold``
     for at least ``min_frames`` frames in a row (a single frame is noise, not a step)."""
-    planted = np.asarray(probability) > threshold
-    for k in range(planted.shape[1]):
-        for a, b in _runs(planted[:, k]):
-            if b - a < min_frames:
-                planted[a:b, k] = False
-    return planted
+    return _drop_short(np.asarray(probability) > threshold, min_frames)
 
 
 def foot_planted(planted: np.ndarray) -> np.ndarray:
@@ -132,8 +143,7 @@ def pin_planted(world: np.ndarray, feet: np.ndarray, planted: np.ndarray,
     n = len(world)
     for side, (hip, knee, ankle) in enumerate(LEGS):
         points = list(FOOT_POINTS[side])
-        thigh = float(np.median(np.linalg.norm(world[:, knee] - world[:, hip], axis=-1)))
-        shin = float(np.median(np.linalg.norm(world[:, ankle] - world[:, knee], axis=-1)))
+        thigh, shin = _leg_lengths(world, hip, knee, ankle)
         shift = np.zeros((n, 3))
         weight = np.zeros(n)
         for a, b in _runs(planted[:, points].any(1)):
@@ -148,12 +158,9 @@ def pin_planted(world: np.ndarray, feet: np.ndarray, planted: np.ndarray,
                 offsets[mask] += target - feet[a:b, p][mask]
                 count[mask] += 1
             offsets /= np.maximum(count, 1)[:, None]
-            lo, hi = max(0, a - ease), min(n, b + ease)
+            lo, hi, ramp = _ease(n, a, b, ease)
             shift[a:b] = offsets
             shift[lo:a], shift[b:hi] = offsets[0], offsets[-1]
-            ramp = np.ones(hi - lo)
-            ramp[: a - lo] = np.arange(1, a - lo + 1) / (a - lo + 1)
-            ramp[len(ramp) - (hi - b):] = np.arange(hi - b, 0, -1) / (hi - b + 1)
             weight[lo:hi] = np.maximum(weight[lo:hi], ramp)
         moved = weight > 0
         if moved.any():

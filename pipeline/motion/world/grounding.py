@@ -28,7 +28,7 @@ from pipeline.motion.world.contact import (
     planted_points,
     skating,
 )
-from pipeline.motion.world.gravity import to_world
+from pipeline.motion.world.gravity import CameraEstimate, to_world
 from pipeline.motion.world.rotations import BVH_JOINTS, solve_rotations
 from pipeline.motion.world.trajectory import refine_root
 
@@ -50,7 +50,7 @@ class GroundedClip:
     planted: np.ndarray | None = None            # T x 4 bool: planted heels and toe tips (None: no learned contact)
     contact_probability: np.ndarray | None = None  # T x 4 the contact model's probabilities
     fit_moved: float = 0.0    # mean distance (m) the one-skeleton fit moved the joints
-    camera_rotation: np.ndarray | None = None  # 3 x 3 camera frame -> world frame
+    camera: CameraEstimate | None = None       # the camera's estimated tilt (rotation to the world frame)
     root_camera: np.ndarray | None = None      # T x 3 the root path used, camera frame (refined when learned)
 
 
@@ -85,7 +85,7 @@ def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float,
                         skating(motion.joints, contact, fps),
                         None if feet is None else carry_feet(feet, pinned, motion.joints), planted,
                         None if contact_probability is None else np.asarray(contact_probability, np.float32),
-                        float(np.linalg.norm(fitted - world, axis=-1).mean()), camera.rotation, root)
+                        float(np.linalg.norm(fitted - world, axis=-1).mean()), camera, root)
 
 
 # --- the ground stage's worker -----------------------------------------------------------

@@ -22,7 +22,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from pipeline.core.storage import column_array, fixed_list, read_meta, write_parquet
+from pipeline.core.storage import column_array, fixed_list, require_schema, write_parquet
 from pipeline.motion.world.grounding import ROTATION_JOINTS, GroundedClip
 
 SCHEMA_VERSION = 1
@@ -99,12 +99,7 @@ def write_world(path: Path, clips: list[WorldClip], segment_meta: Mapping[str, A
 
 
 def read_world(path: Path) -> list[WorldClip]:
-    meta = read_meta(path)
-    if meta.get("schema_version") != SCHEMA_VERSION:
-        from pipeline.core.errors import InputError
-
-        raise InputError(path, f"world file schema {meta.get('schema_version')}, this dance3d reads "
-                               f"{SCHEMA_VERSION}: re-run the ground stage")
+    meta = require_schema(path, SCHEMA_VERSION, "world file", "re-run the ground stage")
     table = pq.read_table(path)
     if not table.num_rows:
         return []
