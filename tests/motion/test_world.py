@@ -134,6 +134,44 @@ def test_the_root_path_is_where_the_pose_projects(dance: np.ndarray) -> None:
     assert np.linalg.norm(align_scale_offset(big, joints[:, 0]) - joints[:, 0], axis=-1).mean() < 0.01
 
 
+def test_a_pose_lifted_as_if_filmed_head_on_is_turned_onto_its_viewing_ray(dance: np.ndarray) -> None:
+    from pipeline.motion.lifting.evaluate import Camera, view
+    from pipeline.motion.mocap.skeleton import coco_from_h36m, smallest_rotation
+    from pipeline.motion.world.trajectory import place_root, root_from_2d
+
+    # A phone at 1.2 m pitched 20 degrees up: the dancer stands low in the frame, well off its axis.
+    camera = Camera("phone_up", 0.0, 1.2, 3.0, 1080, 1920, pitch_deg=-20.0)
+    xy, joints = view(dance, coco_from_h36m(dance), camera)
+    true = joints - joints[:, :1]
+    # What the lifter gives: the pose as a camera aimed at the dancer (same centre) would see it.
+    ray = joints[:, 0] / np.linalg.norm(joints[:, 0], axis=-1, keepdims=True)
+    head_on = np.einsum("tji,tkj->tki", smallest_rotation(np.array([0.0, 0.0, 1.0]), ray), true)
+    assert np.degrees(np.arccos(ray[:, 2])).mean() > 15  # the turn matters here
+    turned, root = place_root(head_on, xy, camera.focal_px, camera.width, camera.height)
+    # The ray comes from a first placement of the untouched pose: close, not exact.
+    assert np.linalg.norm(turned - true, axis=-1).mean() < 0.005
+    # Placed untouched, the pose lands half a metre off (51 cm); turned, within 2 cm (the one skeleton
+    # and COCO's wider hips).
+    untouched = root_from_2d(head_on, xy, camera.focal_px, camera.width, camera.height)
+    assert np.linalg.norm(untouched - joints[:, 0], axis=-1).mean() > 0.3
+    assert np.linalg.norm(root - joints[:, 0], axis=-1).mean() < 0.03
+
+
+def test_bones_that_wobble_from_frame_to_frame_do_not_move_the_body_in_depth(dance: np.ndarray) -> None:
+    from pipeline.motion.lifting.evaluate import PROTOCOL_CAMERAS, view
+    from pipeline.motion.mocap.skeleton import coco_from_h36m
+    from pipeline.motion.world.trajectory import place_root, root_from_2d
+
+    camera = PROTOCOL_CAMERAS[1]
+    xy, joints = view(dance, coco_from_h36m(dance), camera)
+    wobble = 1 + 0.1 * np.sin(np.arange(len(joints)) / 3.0)   # the lifter's per-frame scale, +-10 %
+    lifted = (joints - joints[:, :1]) * wobble[:, None, None]
+    per_frame = root_from_2d(lifted, xy, camera.focal_px, camera.width, camera.height)
+    _, placed = place_root(lifted, xy, camera.focal_px, camera.width, camera.height)
+    depth_error = [np.abs(np.diff(r[:, 2] - joints[:, 0, 2])).mean() for r in (per_frame, placed)]
+    assert depth_error[0] > 0.05 and depth_error[1] < depth_error[0] / 5
+
+
 def test_pinned_feet_stop_sliding_and_keep_the_legs(dance: np.ndarray) -> None:
     from pipeline.motion.world.contact import foot_contact, pin_feet, skating
 

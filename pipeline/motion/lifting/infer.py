@@ -154,7 +154,7 @@ def lift_clips(models: LiftModels, keypoints: list[np.ndarray], feet: list[np.nd
     """2D clips (T x 17 x 3 pixels and scores; heels and toes T x 4 x 3 or None) -> 3D, the root's
     path and the contact probabilities: what the lift stage writes, and what ``dance3d eval world``
     runs on filmed motion capture."""
-    from pipeline.motion.world.trajectory import assumed_focal, root_from_2d
+    from pipeline.motion.world.trajectory import assumed_focal, place_root
 
     if not keypoints:
         return []
@@ -165,8 +165,9 @@ def lift_clips(models: LiftModels, keypoints: list[np.ndarray], feet: list[np.nd
     lifted = lifter.lift(inputs, width, height, flip=flip)
     focal = assumed_focal(width, height)
     out = []
-    for k, joints, (xy, mask) in zip(keypoints, lifted, filled):
-        root = root_from_2d(joints[:, :17], xy[:, :17], focal, width, height, scores=k[..., 2])
+    for seen, joints, (xy, mask) in zip(full, lifted, filled):
+        n = joints.shape[1]  # 21 for a lifter with feet: its heels and toe tips help place it
+        joints, root = place_root(joints, xy[:, :n], focal, width, height, scores=seen[:, :n, 2])
         contact = None if models.contact is None else models.contact.probabilities(xy, fps, flip=flip)
         out.append(LiftedClip(joints[:, :17], joints[:, 17:] if lifter.feet else None, root.astype(np.float32),
                               contact, mask[:, :17]))

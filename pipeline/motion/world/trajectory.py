@@ -5,16 +5,26 @@ from where that pose projects. With a focal length assumed from the frame size (
 26 mm-equivalent main camera), the root translation T of each frame solves a small linear
 least-squares problem over the twelve body keypoints that COCO and Human3.6M share: for a
 joint at X + T seen at pixel (u, v) from the principal point, f (X + T)_x = u (X + T)_z and
-f (X + T)_y = v (X + T)_z. A wrong focal length or body size scales the whole path (depth
-and travel together), which is why errors are also reported after one scale and offset per
-clip.
+f (X + T)_y = v (X + T)_z (and over the heels and toe tips too, for a lifter with feet). A wrong
+focal length or body size scales the whole path (depth and travel together), which is why errors
+are also reported after one scale and offset per clip.
+
+Two things the lifter's pose needs before it is placed (``place_root``): it is turned from the
+camera it was lifted for, aimed at the dancer, onto the dancer's viewing ray
+(``toward_camera_axis``), and it is given one skeleton for the clip, so that a frame whose bones
+the lifter made 10 % longer is not put 10 % further away.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from pipeline.motion.mocap.skeleton import COCO_H36M_SHARED
+from pipeline.motion.mocap.skeleton import COCO_H36M_SHARED, FEET_ANKLES_H36M, smallest_rotation
+from pipeline.motion.world.bones import apply_skeleton, fit_skeleton
+
+# The joints whose pixels place the root: the twelve COCO and H36M share, then the heels and toe
+# tips (joints 17-20 of both the 21-joint keypoints and the 21-joint lifted pose).
+SHARED_WITH_FEET = COCO_H36M_SHARED + tuple((j, j) for j in range(17, 21))
 
 
 def assumed_focal(width: float, height: float, equiv_mm: float = 26.0) -> float:
@@ -25,8 +35,10 @@ def assumed_focal(width: float, height: float, equiv_mm: float = 26.0) -> float:
 def root_from_2d(joints: np.ndarray, keypoints: np.ndarray, focal: float, width: float, height: float,
                  scores: np.ndarray | None = None) -> np.ndarray:
     """Per-frame root translation (T x 3, metres, camera frame) placing the root-relative pose
-    ``joints`` (T x 17 x 3, H36M) where its COCO ``keypoints`` (T x 17 x 2, pixels) are seen."""
-    coco, h36m = (np.array(i) for i in zip(*COCO_H36M_SHARED))
+    ``joints`` (T x 17 x 3, H36M) where its COCO ``keypoints`` (T x 17 x 2, pixels) are seen; with
+    21 of each, the heels and toe tips count too."""
+    both = joints.shape[1] == 21 and keypoints.shape[1] == 21
+    coco, h36m = (np.array(i) for i in zip(*(SHARED_WITH_FEET if both else COCO_H36M_SHARED)))
     xyz = joints[:, h36m].astype(np.float64)
     uv = keypoints[:, coco, :2].astype(np.float64) - np.array([width / 2, height / 2])
     w = np.ones(uv.shape[:2]) if scores is None else np.clip(scores[:, coco], 1e-3, None)
@@ -46,6 +58,39 @@ def root_from_2d(joints: np.ndarray, keypoints: np.ndarray, focal: float, width:
     return np.linalg.solve(ata, atb[..., None])[..., 0]
 
 
+def toward_camera_axis(joints: np.ndarray, root: np.ndarray) -> np.ndarray:
+    """Root-relative joints (T x J x 3) lifted as a camera aimed at the dancer would see them,
+    turned into the real camera's frame, where the dancer sits off its axis on the ray through
+    ``root`` (T x 3, camera frame). The lifter is trained on cameras aimed at the dancer and sees
+    person-centred keypoints only, so it cannot know where in the image the dancer stood: a dancer
+    low in the frame of a camera pitched up is lifted as if filmed level. The rotation taking the
+    optical axis onto the ray (no roll) puts the pose back: a perspective crop, undone."""
+    ray = np.asarray(root, np.float64)
+    ray = ray / np.maximum(np.linalg.norm(ray, axis=-1, keepdims=True), 1e-9)
+    turn = smallest_rotation(np.array([0.0, 0.0, 1.0]), ray)
+    return np.einsum("tij,tkj->tki", turn, joints - joints[:, :1]).astype(joints.dtype)
+
+
+def one_skeleton(joints: np.ndarray) -> np.ndarray:
+    """Joints (T x 17 or 21 x 3) with the clip's one skeleton (``bones``); heels and toe tips ride
+    on their ankles."""
+    body = joints[:, :17].astype(np.float64)
+    fitted = apply_skeleton(body, fit_skeleton(body))
+    if joints.shape[1] == 17:
+        return fitted
+    ankles = list(FEET_ANKLES_H36M)
+    return np.concatenate([fitted, joints[:, 17:] + (fitted[:, ankles] - body[:, ankles])], 1)
+
+
+def place_root(joints: np.ndarray, keypoints: np.ndarray, focal: float, width: float, height: float,
+               scores: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The lifted pose turned onto its viewing ray, and the root path that places it (T x 3):
+    a first placement finds the ray, the turned pose with one skeleton is placed again."""
+    first = root_from_2d(joints, keypoints, focal, width, height, scores)
+    turned = toward_camera_axis(joints, first)
+    return turned, root_from_2d(one_skeleton(turned), keypoints, focal, width, height, scores)
+
+
 def align_scale_offset(pred: np.ndarray, true: np.ndarray) -> np.ndarray:
     """``pred`` (T x 3) after the one scale and offset that bring it nearest ``true`` (least squares)."""
     p, t = pred - pred.mean(0), true - true.mean(0)
@@ -53,10 +98,12 @@ def align_scale_offset(pred: np.ndarray, true: np.ndarray) -> np.ndarray:
     return scale * p + true.mean(0)
 
 
-# Noise scales of the refiner's terms (metres), measured on the held-out protocol's noisy 2D
-# (``dance3d eval world``): the per-frame root is sure across its viewing ray, unsure along it.
+# Noise scales of the refiner's terms (metres), chosen on the protocol's noisy 2D of the lifter's
+# training sequences (``dance3d eval world`` figures, README): the per-frame root is sure across
+# its viewing ray, unsure along it (0.25 m once it is placed by the turned one-skeleton pose;
+# 0.5 m before, when each frame's bones wobbled).
 ACROSS_RAY = 0.02    # per-frame root, across its viewing ray
-ALONG_RAY = 0.5     # per-frame root, along it (depth)
+ALONG_RAY = 0.25    # per-frame root, along it (depth)
 PLANTED = 0.005       # a planted point's motion from one frame to the next
 ACCELERATION = 0.01  # the root's second difference per frame
 
