@@ -17,7 +17,7 @@ from pipeline.core.params import load_params, stage_params
 from pipeline.core.paths import MOTION24, WORLD
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta
-from pipeline.motion.world.contact import MIN_PLANTED_FRAMES, PLANTED_PROBABILITY
+from pipeline.motion.world.contact import HOLD_PROBABILITY, MIN_PLANTED_FRAMES, PLANTED_PROBABILITY
 from pipeline.motion.world.grounding import GroundJob, ground_segment
 from pipeline.motion.world.worldfile import SCHEMA_VERSION
 
@@ -34,7 +34,8 @@ def run(root: Path) -> None:
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out = root / WORLD / src.name
         job = GroundJob(src, out, float(params.get("contact_threshold", PLANTED_PROBABILITY)),
-                        int(params.get("min_contact_frames", MIN_PLANTED_FRAMES)), params, inputs, fp)
+                        int(params.get("min_contact_frames", MIN_PLANTED_FRAMES)),
+                        float(params.get("contact_hold", HOLD_PROBABILITY)), params, inputs, fp)
         items.append(WorkItem(src.stem, fp, (out,), job))
     run_item_stage("ground", items, ground_segment, out_dirs=[root / WORLD], params=params)
 

@@ -153,10 +153,11 @@ def _contact_text(contact: dict | None) -> str:
     rule = ("A heel or toe tip is **planted** when the contact model (a small network on 1.2 s of the 2D "
             "keypoints around each frame, trained on motion capture seen by virtual cameras) gives it a "
             "probability above `ground.contact_threshold` (0.4) for at least `ground.min_contact_frames` (3) "
-            "frames in a row. Its labels on the capture: a point within "
+            "frames in a row, and stays planted while the probability stays above `ground.contact_hold` (0.1). "
+            "Its labels on the capture: a point within "
             "4 cm of the floor and moving slower than 0.2 m/s. Planted points anchor the root path (no drift "
             "or depth jitter while a foot is planted), set the floor (their median height is y = 0) and stay "
-            "where they were planted.")
+            "where they were planted; the held frames at either end are pinned but do not anchor.")
     if not contact or "heldout" not in contact:
         return rule
     every = contact["heldout"].get("all", {})

@@ -119,13 +119,25 @@ def pin_feet(world: np.ndarray, contact: np.ndarray, ease: int = 3) -> np.ndarra
 # of them: 0.925 at 0.25, 0.930 at 0.3, 0.933 at 0.35 and 0.4, 0.929 at 0.5), never on held-out ones.
 PLANTED_PROBABILITY = 0.4
 MIN_PLANTED_FRAMES = 3
+HOLD_PROBABILITY = 0.1
 
 
 def planted_points(probability: np.ndarray, threshold: float = PLANTED_PROBABILITY,
-                   min_frames: int = MIN_PLANTED_FRAMES) -> np.ndarray:
+                   min_frames: int = MIN_PLANTED_FRAMES, hold: float | None = None) -> np.ndarray:
     """T x 4 planted flags from contact probabilities (heels and toe tips): above ``threshold``
-    for at least ``min_frames`` frames in a row (a single frame is noise, not a step)."""
-    return _drop_short(np.asarray(probability) > threshold, min_frames)
+    for at least ``min_frames`` frames in a row (a single frame is noise, not a step). With
+    ``hold`` (hysteresis, as in Canny's edges), a contact so found lasts for as long as the
+    probability stays above ``hold`` on either side: the model is late to call a landing and early
+    to call a lift-off, and a foot freed too early slides where it still stands."""
+    probability = np.asarray(probability)
+    core = _drop_short(probability > threshold, min_frames)
+    if hold is None or hold >= threshold:
+        return core
+    out = np.zeros_like(core)
+    for k in range(core.shape[1]):
+        for a, b in _runs(probability[:, k] > hold):
+            out[a:b, k] = core[a:b, k].any()
+    return out
 
 
 def foot_planted(planted: np.ndarray) -> np.ndarray:

@@ -18,6 +18,7 @@ import numpy as np
 
 from pipeline.motion.world.bones import apply_skeleton, bone_length_cv, fit_skeleton
 from pipeline.motion.world.contact import (
+    HOLD_PROBABILITY,
     MIN_PLANTED_FRAMES,
     PLANTED_PROBABILITY,
     carry_feet,
@@ -56,19 +57,25 @@ class GroundedClip:
 
 def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float,
                 feet_cam: np.ndarray | None = None, contact_probability: np.ndarray | None = None, *,
-                threshold: float = PLANTED_PROBABILITY, min_frames: int = MIN_PLANTED_FRAMES) -> GroundedClip:
+                threshold: float = PLANTED_PROBABILITY, min_frames: int = MIN_PLANTED_FRAMES,
+                hold: float | None = HOLD_PROBABILITY) -> GroundedClip:
     """Camera-frame root-relative joints (T x 17 x 3), the root path (T x 3 or None), the heels
     and toe tips (T x 4 x 3, like the joints, or None) and their contact probabilities (T x 4 or
-    None; a point is planted above ``threshold`` for ``min_frames`` frames in a row)."""
+    None; a point is planted above ``threshold`` for ``min_frames`` frames in a row, and stays
+    planted while above ``hold``)."""
     joints_cam = joints_cam.astype(np.float64)
     learned = contact_probability is not None and feet_cam is not None and root is not None
-    planted = planted_points(contact_probability, threshold, min_frames) if learned else None
+    planted = anchors = None
     if learned:
-        root = refine_root(root.astype(np.float64), feet_cam.astype(np.float64) - joints_cam[:, :1], planted)
+        # The sure contacts anchor the path and the floor; the held ones are pinned too (a foot
+        # that still stands must not slide), but their edges are where a foot may already move.
+        anchors = planted_points(contact_probability, threshold, min_frames)
+        planted = planted_points(contact_probability, threshold, min_frames, hold)
+        root = refine_root(root.astype(np.float64), feet_cam.astype(np.float64) - joints_cam[:, :1], anchors)
     if feet_cam is not None:
         joints_cam = np.concatenate([joints_cam, feet_cam.astype(np.float64)], 1)
     everything, camera = to_world(joints_cam, root=None if root is None else root.astype(np.float64),
-                                  planted=planted)
+                                  planted=anchors)
     world = everything[:, :17]
     fitted = apply_skeleton(world, fit_skeleton(world))
     feet = None if feet_cam is None else carry_feet(everything[:, 17:], world, fitted)
@@ -95,7 +102,8 @@ class GroundJob:
     motion24: Path
     out: Path
     contact_threshold: float  # a point is planted above this probability ...
-    min_contact_frames: int   # ... for at least this many frames in a row
+    min_contact_frames: int   # ... for at least this many frames in a row ...
+    contact_hold: float       # ... and stays planted while above this one
     params: dict
     inputs: dict
     fingerprint: str
@@ -110,7 +118,8 @@ def ground_segment(job: GroundJob) -> dict:
     clips = []
     for clip in motion.clips:
         grounded = ground_clip(clip.joints, clip.root, motion.fps, clip.feet, clip.contact,
-                               threshold=job.contact_threshold, min_frames=job.min_contact_frames)
+                               threshold=job.contact_threshold, min_frames=job.min_contact_frames,
+                               hold=job.contact_hold)
         clips.append(world_clip(clip.clip_id, clip.track_id, clip.frame, clip.time, grounded))
     segment = {k: motion.meta.get(k) for k in ("segment_id", "fps", "source_fps", "width", "height")}
     write_world(job.out, clips, segment, fingerprint=job.fingerprint, params=job.params, inputs=job.inputs)
