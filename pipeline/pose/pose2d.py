@@ -312,6 +312,7 @@ class PoseModels:
 
 
 POSE_WRAPPERS = {"movenet": MoveNetPose, "rtmpose": RTMPose, "tinypose": TinyPose, "blazepose": BlazePose}
+BATCHED_KINDS = ("tinypose", "blazepose")  # published with a batch of 1: edited to take a frame's crops at once
 
 
 def load_pose_models(files: ModelFiles) -> PoseModels:
@@ -330,7 +331,8 @@ def load_pose_models(files: ModelFiles) -> PoseModels:
     for path, kind, size in files.poses:
         if kind not in POSE_WRAPPERS:
             raise ValueError(f"model kind {kind!r} is not a 2D pose model")
-        poses.append(POSE_WRAPPERS[kind](create_session(Path(path), files.threads), size, files.crop_padding))
+        session = create_session(Path(path), files.threads, any_batch=kind in BATCHED_KINDS)
+        poses.append(POSE_WRAPPERS[kind](session, size, files.crop_padding))
     return PoseModels(detector, poses[0] if len(poses) == 1 else BodyAndFeet(*poses))
 
 

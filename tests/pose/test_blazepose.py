@@ -75,3 +75,33 @@ def test_feet_hang_from_the_body_models_ankles(models_dir: Path, blazepose: Blaz
         assert both.feet[0, foot, 2] > 0.5
         assert np.linalg.norm(both.feet[0, foot, :2] - both.keypoints[0, ankle, :2]) < 0.12 * height
     assert both.world is not None and both.world.shape == (1, 33, 3)
+
+
+def test_a_frames_crops_go_in_one_call_and_give_what_the_published_batch_of_one_gives(models_dir: Path,
+                                                                                        media_dir: Path) -> None:
+    from pipeline.pose.models.pose import crop_transform
+
+    image = cv2.imread(str(media_dir / "images/human-pose.jpg"))
+    h, w = image.shape[:2]
+    # Five boxes: the whole picture, its halves and a corner (people or not, the crops differ).
+    boxes = np.array([[0, 0, w, h], [0, 0, w / 2, h], [w / 2, 0, w, h], [0, 0, w / 3, h / 3],
+                      [w / 4, h / 4, 3 * w / 4, h]], np.float32)
+    for path, wrapper in ((models_dir / "tinypose_256x192.onnx", TinyPose),
+                          (models_dir / "blazepose_full.onnx", BlazePose)):
+        published = create_session(path)
+        edited = create_session(path, any_batch=True)
+        assert published.get_inputs()[0].shape[0] == 1 and edited.get_inputs()[0].shape[0] == "batch"
+        calls = []
+        run = edited.run
+        edited.run = lambda names, feed, *a: calls.append(len(next(iter(feed.values())))) or run(names, feed, *a)
+        one_by_one, batched = wrapper(published).estimate(image, boxes), wrapper(edited).estimate(image, boxes)
+        np.testing.assert_allclose(batched.keypoints, one_by_one.keypoints, atol=1e-4)
+        np.testing.assert_allclose(batched.feet, one_by_one.feet, atol=1e-4)
+        assert calls[0] == 5  # every person's first pass at once
+        # A ROI per person (the feet model after the body model): one call for the frame.
+        if wrapper is BlazePose:
+            rois = [crop_transform(b, 256, 256) for b in boxes]
+            calls.clear()
+            np.testing.assert_allclose(BlazePose(edited).estimate_in_rois(image, rois, boxes).feet,
+                                       BlazePose(published).estimate_in_rois(image, rois, boxes).feet, atol=1e-4)
+            assert calls == [5]

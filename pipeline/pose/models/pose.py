@@ -157,12 +157,25 @@ def decode_heatmaps(heatmaps: np.ndarray, stride: float) -> np.ndarray:
     return np.stack([x * stride + (stride - 1) / 2, y * stride + (stride - 1) / 2, score], -1).astype(np.float32)
 
 
+def run_batched(session, outputs, input_name: str, tensors: np.ndarray):
+    """``session.run`` on a batch of crops: one call when the session takes a batch, one per crop
+    (concatenated) when its model is fixed at one. ``outputs`` is one output name or a list."""
+    names = [outputs] if isinstance(outputs, str) else list(outputs)
+    if session.get_inputs()[0].shape[0] != 1 or len(tensors) == 1:
+        results = session.run(names, {input_name: tensors})
+    else:
+        parts = [session.run(names, {input_name: tensors[i:i + 1]}) for i in range(len(tensors))]
+        results = [np.concatenate([p[k] for p in parts]) for k in range(len(names))]
+    return results[0] if isinstance(outputs, str) else results
+
+
 IMAGENET_MEAN = np.array([0.485, 0.456, 0.406], np.float32)
 IMAGENET_STD = np.array([0.229, 0.224, 0.225], np.float32)
 
 
 class TinyPose:
-    """PP-TinyPose heatmap exports (NCHW RGB, ImageNet-normalised, 256x192, batch 1): one crop per call."""
+    """PP-TinyPose heatmap exports (NCHW RGB, ImageNet-normalised, 256x192): a frame's crops in one
+    call when the session takes a batch (``batching.any_batch``), one by one otherwise."""
 
     def __init__(self, session, input_size: tuple[int, int] = (192, 256), padding: float = 1.25):
         self.session = session
@@ -171,17 +184,19 @@ class TinyPose:
         self.input_name = session.get_inputs()[0].name
         self.heatmap_name = next(o.name for o in session.get_outputs() if len(o.shape) == 4)
 
-    def estimate(self, image: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    def estimate(self, image: np.ndarray, boxes: np.ndarray) -> PoseBatch:
         out = np.zeros((len(boxes), 17, 3), np.float32)
+        if not len(boxes):
+            return PoseBatch.body_only(out)
         w, h = self.size
-        for i, box in enumerate(boxes):
-            m = crop_transform(box, w, h, self.padding)
-            crop = cv2.cvtColor(warp(image, m, w, h), cv2.COLOR_BGR2RGB).astype(np.float32) / 255.0
-            tensor = ((crop - IMAGENET_MEAN) / IMAGENET_STD).transpose(2, 0, 1)[None]
-            (heatmaps,) = self.session.run([self.heatmap_name], {self.input_name: np.ascontiguousarray(tensor)})
-            decoded = decode_heatmaps(heatmaps, stride=w / heatmaps.shape[-1])[0]
-            out[i, :, :2] = to_image(decoded[:, :2], m)
-            out[i, :, 2] = decoded[:, 2]
+        matrices = [crop_transform(box, w, h, self.padding) for box in boxes]
+        crops = np.stack([cv2.cvtColor(warp(image, m, w, h), cv2.COLOR_BGR2RGB) for m in matrices])
+        tensors = ((crops.astype(np.float32) / 255.0 - IMAGENET_MEAN) / IMAGENET_STD).transpose(0, 3, 1, 2)
+        heatmaps = run_batched(self.session, self.heatmap_name, self.input_name, np.ascontiguousarray(tensors))
+        decoded = decode_heatmaps(heatmaps, stride=w / heatmaps.shape[-1])
+        for i, m in enumerate(matrices):
+            out[i, :, :2] = to_image(decoded[i, :, :2], m)
+            out[i, :, 2] = decoded[i, :, 2]
         return PoseBatch.body_only(out)
 
 
@@ -234,17 +249,21 @@ class BlazePose:
         self.input_name = session.get_inputs()[0].name
         shapes = {o.name: o.shape for o in session.get_outputs()}
         self.landmarks_name = next(n for n, s in shapes.items() if s[-1] == 195)
-        self.presence_name = next(n for n, s in shapes.items() if list(s) == [1, 1])
+        self.presence_name = next(n for n, s in shapes.items() if len(s) == 2 and s[-1] == 1)
         self.world_name = next(n for n, s in shapes.items() if s[-1] == 117)
         self.heatmap_name = next(n for n, s in shapes.items() if len(s) == 4 and s[-1] == 39)
 
-    def _run(self, image: np.ndarray, matrix: np.ndarray) -> tuple[np.ndarray, float, np.ndarray, float]:
-        crop = cv2.cvtColor(warp(image, matrix, self.size, self.size), cv2.COLOR_BGR2RGB)
-        tensor = (crop.astype(np.float32) / 255.0)[None]
-        landmarks, presence, world, heatmaps = self.session.run(
-            [self.landmarks_name, self.presence_name, self.world_name, self.heatmap_name], {self.input_name: tensor})
-        strength = float(heatmaps[0, :, :, :33].reshape(-1, 33).max(0).mean())
-        return landmarks.reshape(39, 5), float(presence.ravel()[0]), world.reshape(39, 3), strength
+    def _run(self, image: np.ndarray, matrices: list[np.ndarray]) -> list[tuple[np.ndarray, float, np.ndarray, float]]:
+        """One call on the crops ``matrices`` give: per crop, landmarks, presence, world, strength."""
+        if not matrices:
+            return []
+        crops = np.stack([cv2.cvtColor(warp(image, m, self.size, self.size), cv2.COLOR_BGR2RGB) for m in matrices])
+        landmarks, presence, world, heatmaps = run_batched(
+            self.session, [self.landmarks_name, self.presence_name, self.world_name, self.heatmap_name],
+            self.input_name, crops.astype(np.float32) / 255.0)
+        strength = heatmaps[..., :33].reshape(len(crops), -1, 33).max(1).mean(1)
+        return [(landmarks[i].reshape(39, 5), float(presence[i].ravel()[0]), world[i].reshape(39, 3),
+                 float(strength[i])) for i in range(len(crops))]
 
     def _first_crop(self, box: np.ndarray) -> list[np.ndarray]:
         """The box's square crop upright, then turned a quarter, a half and three quarters."""
@@ -268,25 +287,23 @@ class BlazePose:
         keypoints = np.zeros((n, 17, 3), np.float32)
         feet = np.zeros((n, len(FEET), 3), np.float32)
         world = np.zeros((n, 33, 3), np.float32)
-        for i, box in enumerate(boxes):
-            if rois[i] is not None:
-                m = rois[i]
-                result = self._run(image, m)
-                self._fill(i, result, m, keypoints, feet, world)
-                continue
-            crops = self._first_crop(box)
-            m = crops[0]
-            result = self._run(image, m)
-            if result[3] < self.orientation_check:
-                tries = [(self._run(image, c), c) for c in crops[1:]]
-                best = max(tries, key=lambda t: t[0][3])
-                if best[0][3] > result[3]:
-                    result, m = best
-            for _ in range(self.passes - 1):
-                xy = to_image(result[0][:, :2].astype(np.float64), m)
-                m = roi_transform(xy[33], xy[34], self.size)
-                result = self._run(image, m)
-            self._fill(i, result, m, keypoints, feet, world)
+        matrices = [rois[i] if rois[i] is not None else self._first_crop(boxes[i])[0] for i in range(n)]
+        results = self._run(image, matrices)  # every person's first (or only) pass in one call
+        fresh = [i for i in range(n) if rois[i] is None]
+        # Weak heatmaps on the upright crop: the body may be upside down or lying; try it turned.
+        weak = [i for i in fresh if results[i][3] < self.orientation_check]
+        turned = [(i, c) for i in weak for c in self._first_crop(boxes[i])[1:]]
+        for (i, c), result in zip(turned, self._run(image, [c for _, c in turned])):
+            if result[3] > results[i][3]:
+                results[i], matrices[i] = result, c
+        for _ in range(self.passes - 1):  # MediaPipe's ROI from the landmarks, then the pass kept
+            for i in fresh:
+                xy = to_image(results[i][0][:, :2].astype(np.float64), matrices[i])
+                matrices[i] = roi_transform(xy[33], xy[34], self.size)
+            for i, result in zip(fresh, self._run(image, [matrices[i] for i in fresh])):
+                results[i] = result
+        for i in range(n):
+            self._fill(i, results[i], matrices[i], keypoints, feet, world)
         return PoseBatch(keypoints, feet, world)
 
     @staticmethod
