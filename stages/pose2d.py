@@ -18,6 +18,7 @@ from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint
 from pipeline.ingest.catalog import read_index
 from pipeline.ingest.segmentvideo import SegmentVideo
+from pipeline.pose.models.session import describe
 from pipeline.pose.pose2d import Pose2dJob, Pose2dOptions, load_pose_models, model_files, pose_segment
 from pipeline.pose.pose2dfile import SCHEMA_VERSION, SegmentInfo
 
@@ -31,16 +32,19 @@ def run(root: Path) -> None:
     params = stage_params(load_params(root / "params.yaml"), "pose2d")
     opts = Pose2dOptions.from_params(params)
     files, model_hashes = model_files(root, params)
+    log.info("models run on %s (pose2d.device: %s)", describe(files.device, files.threads), files.device)
+    # Where the models run is not what they compute: a segment done on a GPU is not redone on a CPU.
+    computed = {k: v for k, v in params.items() if k != "device"}
     items = []
     for seg in read_index(root / SEGMENTS).values():
         inputs = {"segment": seg["fingerprint"], **model_hashes}
-        fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
+        fp = fingerprint(SCHEMA_VERSION, inputs, computed, CODE)
         out = root / POSE2D / f"{seg['segment_id']}.parquet"
         segment = SegmentInfo(seg["segment_id"], seg["fps"], int(seg["frames"]), seg["width"], seg["height"])
         job = Pose2dJob(SegmentVideo.from_index(root / RAW, seg), out, segment, opts, params, inputs, fp)
         items.append(WorkItem(seg["segment_id"], fp, (out,), job))
     report = run_item_stage("pose2d", items, pose_segment, out_dirs=[root / POSE2D], params=params,
-                            setup=load_pose_models, setup_args=(files,), gpu=True)
+                            setup=load_pose_models, setup_args=(files,), gpu=files.device != "cpu")
     for seg_id, r in sorted(report.done.items()):
         if r["frames_with_people"] == 0:
             log.warning("%s: no people found in any of its %d frames", seg_id, r["frames"])

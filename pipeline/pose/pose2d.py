@@ -26,7 +26,7 @@ import numpy as np
 from pipeline.ingest.segmentvideo import SegmentVideo, frames_of
 from pipeline.pose.models.detector import Detections, FusedDetector, PicoDetDetector, RTMDetDetector, largest
 from pipeline.pose.models.pose import BlazePose, BodyAndFeet, MoveNetPose, PoseBatch, RTMPose, TinyPose
-from pipeline.pose.models.session import create_session
+from pipeline.pose.models.session import create_session, providers
 from pipeline.pose.pose2dfile import FEET, WORLD, Poses, SegmentInfo, write_pose2d
 
 DEFAULT_DETECTOR = "rtmdet-nano-person"
@@ -280,6 +280,7 @@ class ModelFiles:
     threads: int = 1
     det_score: float = 0.5      # the detectors' own threshold (Pose2dOptions.detector_floor)
     crop_padding: float = 1.25
+    device: str = "auto"        # session.DEVICES
 
 
 def model_names(value: str | list[str]) -> list[str]:
@@ -301,7 +302,8 @@ def model_files(root: Path, params: dict) -> tuple[ModelFiles, dict[str, str]]:
     files = ModelFiles(tuple((str(paths[d.name]), d.kind, d.input_size) for d in dets),
                        tuple((str(paths[p.name]), p.kind, p.input_size) for p in poses),
                        int(params.get("threads", 1)), Pose2dOptions.from_params(params).detector_floor,
-                       float(params.get("crop_padding", 1.25)))
+                       float(params.get("crop_padding", 1.25)), str(params.get("device", "auto")))
+    providers(files.device)  # an unknown device, or cuda without CUDA: one clear error before any work
     return files, {name: sha256_file(path) for name, path in paths.items()}
 
 
@@ -319,7 +321,7 @@ def load_pose_models(files: ModelFiles) -> PoseModels:
     """One worker's sessions, built once and reused for every segment it gets."""
     detectors = []
     for path, kind, size in files.detectors:
-        session = create_session(Path(path), files.threads)
+        session = create_session(Path(path), files.threads, device=files.device)
         if kind == "rtmdet":
             detectors.append(RTMDetDetector(session, size, files.det_score))
         elif kind == "picodet":
@@ -331,7 +333,7 @@ def load_pose_models(files: ModelFiles) -> PoseModels:
     for path, kind, size in files.poses:
         if kind not in POSE_WRAPPERS:
             raise ValueError(f"model kind {kind!r} is not a 2D pose model")
-        session = create_session(Path(path), files.threads, any_batch=kind in BATCHED_KINDS)
+        session = create_session(Path(path), files.threads, any_batch=kind in BATCHED_KINDS, device=files.device)
         poses.append(POSE_WRAPPERS[kind](session, size, files.crop_padding))
     return PoseModels(detector, poses[0] if len(poses) == 1 else BodyAndFeet(*poses))
 

@@ -197,3 +197,35 @@ def test_picodet_and_the_fused_detector_find_the_skier_once(models_dir: Path, me
         x1, y1, x2, y2 = found.boxes[0]
         assert x2 - x1 > 150 and y2 - y1 > 250 and found.scores[0] >= 0.5
     assert len(FusedDetector([rtm, pico]).detect(cv2.imread(str(media_dir / "images/no_person_park.jpg")))) == 0
+
+
+def test_the_device_picks_cuda_when_onnxruntime_has_it_and_says_how_to_get_it_when_not(monkeypatch) -> None:
+    import onnxruntime as ort
+
+    from pipeline.pose.models import session
+
+    monkeypatch.setattr(ort, "get_available_providers", lambda: ["CUDAExecutionProvider", "CPUExecutionProvider"])
+    assert session.providers("auto") == ["CUDAExecutionProvider", "CPUExecutionProvider"]
+    assert session.providers("cuda")[0] == "CUDAExecutionProvider"
+    assert session.providers("cpu") == ["CPUExecutionProvider"]
+    assert session.describe("auto").startswith("CUDA") and session.describe("cpu", 2).startswith("CPU, 2 threads")
+    monkeypatch.setattr(ort, "get_available_providers", lambda: ["CPUExecutionProvider"])
+    assert session.providers("auto") == ["CPUExecutionProvider"]
+    with pytest.raises(RuntimeError, match=r"no CUDA.*\.\[gpu\]"):
+        session.providers("cuda")
+    with pytest.raises(ValueError, match="auto, cpu, cuda"):
+        session.providers("gpu")
+
+
+def test_the_pose2d_models_refuse_cuda_without_it_before_any_work(monkeypatch, models_dir: Path) -> None:
+    import onnxruntime as ort
+
+    from pipeline.pose.pose2d import model_files
+
+    monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
+    monkeypatch.setattr(ort, "get_available_providers", lambda: ["CPUExecutionProvider"])
+    root = Path(__file__).resolve().parents[2]
+    files, _ = model_files(root, {"device": "cpu"})
+    assert files.device == "cpu"
+    with pytest.raises(RuntimeError, match="no CUDA"):
+        model_files(root, {"device": "cuda"})
