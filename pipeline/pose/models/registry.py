@@ -1,7 +1,8 @@
 """The model registry: each model's file, checksum, official source and input spec.
 
-Lookup order for a model file: ``$DANCE3D_MODELS``, the project's ``models/`` folder,
-then a download from its route (``pipeline.pose.models.fetch``: sha256 checked, outputs
+Lookup order for a model file: ``$DANCE3D_MODELS``, the project's ``models/`` folder, the
+copy shipped in the package (``weights/``: PP-TinyPose, which has no download), then a
+download from its route (``pipeline.pose.models.fetch``: sha256 checked, outputs
 verified). Models whose route needs a conversion are fetched by ``dance3d models fetch``,
 never silently during a stage. A model that cannot be found gives one line saying which
 file to put where.
@@ -29,6 +30,10 @@ class ModelSpec:
     url: str | None = None      # where users get it by hand (fetchable models have routes in fetch.py)
     member: str | None = None   # the file inside that archive
     note: str = ""
+    shipped: bool = False       # a copy ships in the package (SHIPPED; licence and provenance beside it)
+
+
+SHIPPED = Path(__file__).resolve().parent / "weights"
 
 
 REGISTRY: dict[str, ModelSpec] = {
@@ -55,7 +60,8 @@ REGISTRY: dict[str, ModelSpec] = {
             "tinypose", "tinypose_256x192.onnx", "tinypose", (192, 256),
             "d6b08c1ada0a807d27b260d3a19cfade722e7253cc1bfe59d6bfb98932061a1f",
             note="PP-TinyPose 256x192 (PaddleDetection, Apache-2.0), COCO-17 heatmaps, converted from an OpenVINO "
-                 "IR export (MODELS.md 4c); no official ONNX download",
+                 "IR export; no official ONNX download, so it ships in the package (weights/PROVENANCE.md)",
+            shipped=True,
         ),
         ModelSpec(
             "blazepose-full", "blazepose_full.onnx", "blazepose", (256, 256), None,
@@ -95,7 +101,7 @@ def resolve_model(name: str, project_root: Path | None = None, *, allow_download
     """The path of model ``name``'s file, downloading it (checksum verified) when absent."""
     spec = get_spec(name)
     dirs = model_dirs(project_root)
-    for folder in dirs:
+    for folder in dirs + ([SHIPPED] if spec.shipped else []):
         candidate = folder / spec.file
         if candidate.is_file():
             return candidate
