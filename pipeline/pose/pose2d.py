@@ -5,7 +5,9 @@ feet's (when it is a separate one) run in four threads joined by small bounded q
 the two CPU cores overlap work on consecutive frames while memory stays constant in the
 video's length. With ``det_every = k > 1`` the
 detector runs on every k-th frame; in between each person's box is carried over from
-their keypoints in the previous frame.
+their keypoints in the previous frame, and the detector runs after all on a frame where a
+person is lost, a pose is weak or two people overlap (:func:`needs_detection`), as MediaPipe
+and rtmlib's trackers fall back to their detectors.
 
 Who counts as a person (:func:`find_people`): a box at ``det_score`` or above, or a weaker one
 (down to ``confirm_score``) whose pose the pose model confirms with ``confirm_joints``
@@ -39,6 +41,9 @@ class Pose2dOptions:
     det_every: int = 1             # run the detector every k-th frame
     carry_min_score: float = 0.2   # keypoints at least this confident define a carried-over box
     carry_margin: float = 0.15     # carried box = keypoint extent grown by this share per side
+    redetect_overlap: float = 0.3  # between detections, two carried people overlapping this much (IoU) ...
+    redetect_joints: int = 6       # ... or a carried pose with fewer joints at confirm_joint_score, or one
+                                   # lost: the detector runs on that frame after all (0: never on demand)
     queue_size: int = 4
     det_score: float = 0.5         # a box this confident is a person
     confirm_score: float = 0.0     # a weaker box down to this is a person if its pose confirms it (0: off)
@@ -51,7 +56,7 @@ class Pose2dOptions:
     @staticmethod
     def from_params(params: dict) -> "Pose2dOptions":
         names = ("top_k", "det_every", "det_score", "confirm_score", "confirm_joints", "confirm_joint_score",
-                 "confirm_min_height", "min_joints", "dark_mean")
+                 "confirm_min_height", "min_joints", "dark_mean", "redetect_overlap", "redetect_joints")
         fields = {f: type(getattr(Pose2dOptions, f)) for f in names}
         return Pose2dOptions(**{f: kind(params[f]) for f, kind in fields.items() if f in params})
 
@@ -219,6 +224,9 @@ def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opt
             if dets is None:
                 dets = _carry(previous, keypoints, image, opts)
                 batch: PoseBatch = body_model.estimate(image, dets.boxes)
+                if needs_detection(previous, dets, batch.keypoints, opts):
+                    dets, batch = find_people(image, detector.detect(image), body_model, opts)
+                    was_detected = True
             else:
                 dets, batch = find_people(image, dets, body_model, opts)
             previous, keypoints = dets, batch.keypoints
@@ -234,6 +242,36 @@ def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opt
             yield FramePoses(number, time, dets.boxes, dets.scores, batch.keypoints, was_detected, batch.feet, world)
     finally:
         stop.set()
+
+
+def _iou(boxes: np.ndarray) -> np.ndarray:
+    """N x N intersection over union of boxes (x1, y1, x2, y2)."""
+    x1 = np.maximum(boxes[:, None, 0], boxes[None, :, 0])
+    y1 = np.maximum(boxes[:, None, 1], boxes[None, :, 1])
+    x2 = np.minimum(boxes[:, None, 2], boxes[None, :, 2])
+    y2 = np.minimum(boxes[:, None, 3], boxes[None, :, 3])
+    inter = np.clip(x2 - x1, 0, None) * np.clip(y2 - y1, 0, None)
+    area = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
+    return inter / np.maximum(area[:, None] + area[None, :] - inter, 1e-9)
+
+
+def needs_detection(previous: Detections | None, carried: Detections, keypoints: np.ndarray,
+                    opts: Pose2dOptions) -> bool:
+    """Whether a frame between detections needs the detector after all: someone was lost (too few
+    confident keypoints to carry a box), a carried pose is weak (fewer than ``redetect_joints``
+    joints at ``confirm_joint_score``), or two people overlap (IoU above ``redetect_overlap``), where
+    carried boxes may slide from one dancer onto the other."""
+    if opts.redetect_joints <= 0:
+        return False
+    if previous is not None and len(carried) < len(previous):
+        return True
+    if ((keypoints[:, :, 2] >= opts.confirm_joint_score).sum(1) < opts.redetect_joints).any():
+        return True
+    if len(carried) > 1:
+        overlap = _iou(carried.boxes)
+        np.fill_diagonal(overlap, 0.0)
+        return bool((overlap > opts.redetect_overlap).any())
+    return False
 
 
 def _carry(previous: Detections | None, keypoints: np.ndarray, image: np.ndarray, opts: Pose2dOptions) -> Detections:

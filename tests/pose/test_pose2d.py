@@ -230,3 +230,21 @@ def test_a_very_dark_frame_is_brightened_so_the_dancer_is_found(media_dir: Path,
     people, _ = find_people(lifted, models.detector.detect(lifted), models.pose, opts)
     assert len(people) >= 1
     assert lift_dark(image, opts.dark_mean) is image  # a normal frame is left alone
+
+
+def test_between_detections_the_detector_runs_after_all_where_someone_is_lost_weak_or_overlapping() -> None:
+    from pipeline.pose.models.detector import Detections
+    from pipeline.pose.pose2d import Pose2dOptions, needs_detection
+
+    opts = Pose2dOptions(det_every=5, confirm_joint_score=0.3, redetect_joints=6, redetect_overlap=0.3)
+    two = Detections(np.array([[0, 0, 100, 200], [300, 0, 400, 200]], np.float32), np.array([0.9, 0.8], np.float32))
+    sure = np.full((2, 17, 3), 0.9, np.float32)
+    assert not needs_detection(two, two, sure, opts)                       # two clear dancers apart: carry on
+    one = Detections(two.boxes[:1], two.scores[:1])
+    assert needs_detection(two, one, sure[:1], opts)                       # one was lost
+    weak = sure.copy()
+    weak[1, 5:, 2] = 0.1                                                   # five joints left at 0.3
+    assert needs_detection(two, two, weak, opts)
+    close = Detections(np.array([[0, 0, 100, 200], [40, 0, 140, 200]], np.float32), two.scores)  # IoU 0.43
+    assert needs_detection(two, close, sure, opts)
+    assert not needs_detection(two, close, sure, Pose2dOptions(det_every=5, redetect_joints=0))  # on demand: off
