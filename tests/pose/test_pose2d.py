@@ -145,8 +145,10 @@ def test_missing_model_stops_the_stage_with_one_line(project: Path, tmp_path: Pa
         run_stages(project, "pose2d")
     message = str(err.value)
     assert "\n" not in message
-    assert message.startswith("model tinypose: tinypose_256x192.onnx not found; "
+    # TinyPose ships in the package; the feet model is the one missing.
+    assert message.startswith("model blazepose-full: blazepose_full.onnx not found; "
                               f"put it in {only_detector} or {project / 'models'}")
+    assert "dance3d models fetch blazepose-full" in message
 
 
 def test_the_default_models_put_heels_toes_and_world_landmarks_in_the_data_and_clean_keeps_them(
