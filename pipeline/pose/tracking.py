@@ -169,7 +169,7 @@ def track_segment(job: TrackJob) -> dict:
     pose2d = read_pose2d(job.pose2d)
     poses = pose2d.poses
     ids = assign_tracks(poses.frame, poses.box, poses.keypoints, job.opts)
-    write_tracks(job.out, poses, ids, pose2d.segment, fingerprint=job.fingerprint, params=job.params,
+    write_tracks(job.out, job.pose2d, poses, ids, pose2d.segment, fingerprint=job.fingerprint, params=job.params,
                  inputs={"pose2d": pose2d.fingerprint})
     if job.qc_out is not None:
         render_qc(job.video, pose2d.segment.fps, poses.frame, ids, poses.box, poses.keypoints, job.qc_out,

@@ -15,7 +15,7 @@ from pipeline.annotate.clipfile import read_clean
 from pipeline.annotate.commands import check_manifests, seed_manifests
 from pipeline.annotate.proposals import ProposalOptions
 from pipeline.core.errors import InputErrors
-from pipeline.pose.pose2dfile import Poses, SegmentInfo
+from pipeline.pose.pose2dfile import Poses, SegmentInfo, write_pose2d
 from pipeline.pose.trackfile import read_tracks
 from pipeline.pose.trackfile import write_tracks as write_tracks_file
 from tests.conftest import ffmpeg, run_stages, set_params, write_sources
@@ -38,10 +38,12 @@ def write_tracks(root: Path, seg_id: str, people: dict[int, list[int]], fps: flo
     poses = Poses(frame=frame, time=frame / fps, person=np.zeros(n), box=np.array([r[2] for r in rows]),
                   box_score=np.full(n, 0.9), keypoints=np.array([r[3] for r in rows]).reshape(n, 17, 3),
                   detected=np.ones(n, bool), feet=np.zeros((n, 4, 3)), world=np.full((n, 33, 3), np.nan))
-    path = root / "data/tracks" / f"{seg_id}.parquet"
+    path, pose2d = root / "data/tracks" / f"{seg_id}.parquet", root / "data/pose2d" / f"{seg_id}.parquet"
     frames_total = max(max(f) for f in people.values()) + 1
-    write_tracks_file(path, poses, np.array([r[1] for r in rows]), SegmentInfo(seg_id, fps, frames_total, 1280, 720),
-                      fingerprint="t1", params={}, inputs={})
+    segment = SegmentInfo(seg_id, fps, frames_total, 1280, 720)
+    write_pose2d(pose2d, poses, segment, fingerprint="p1", params={}, inputs={})
+    write_tracks_file(path, pose2d, poses, np.array([r[1] for r in rows]), segment, fingerprint="t1", params={},
+                      inputs={"pose2d": "p1"})
     return path
 
 

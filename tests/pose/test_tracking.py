@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -125,3 +127,33 @@ def test_similarity_measures() -> None:
     far[:, 0] += 100
     sims = oks_matrix(kp[None], np.stack([kp, far]), np.array([90 * 200.0, 90 * 200.0]), 0.2)
     assert sims[0, 0] == pytest.approx(1.0) and sims[0, 1] < 0.01
+
+
+def test_a_tracks_file_holds_only_the_ids_and_reads_back_joined_with_its_pose2d_file(tmp_path: Path) -> None:
+    from pipeline.core.errors import InputError
+    from pipeline.pose.pose2dfile import Poses, SegmentInfo, write_pose2d
+    from pipeline.pose.trackfile import read_tracks, write_tracks
+
+    n = 200
+    frame = np.repeat(np.arange(n // 2), 2)
+    rng = np.random.default_rng(0)
+    poses = Poses(frame=frame, time=frame / 30.0, person=np.tile([0, 1], n // 2), box=rng.random((n, 4)) * 500,
+                  box_score=np.full(n, 0.9), keypoints=rng.random((n, 17, 3)) * 500, detected=np.ones(n, bool),
+                  feet=rng.random((n, 4, 3)), world=rng.random((n, 33, 3)))
+    segment = SegmentInfo("seg", 30.0, n // 2, 640, 360)
+    pose2d, tracks = tmp_path / "data/pose2d/seg.parquet", tmp_path / "data/tracks/seg.parquet"
+    write_pose2d(pose2d, poses, segment, fingerprint="p1", params={}, inputs={})
+    ids = np.tile([1, 2], n // 2)
+    write_tracks(tracks, pose2d, poses, ids, segment, fingerprint="t1", params={}, inputs={"pose2d": "p1"})
+    assert tracks.stat().st_size < pose2d.stat().st_size / 20  # the ids, not the poses again
+    back = read_tracks(tracks)
+    assert back.ids == [1, 2] and back.fingerprint == "t1" and back.frames_total == n // 2
+    np.testing.assert_allclose(back.keypoints, poses.keypoints, rtol=1e-6)
+    np.testing.assert_allclose(back.world, poses.world, rtol=1e-6)
+    # A pose2d file written again after tracking is refused, not silently mis-numbered.
+    write_pose2d(pose2d, poses, segment, fingerprint="p2", params={}, inputs={})
+    with pytest.raises(InputError, match="another version.*dvc repro track"):
+        read_tracks(tracks)
+    pose2d.unlink()
+    with pytest.raises(InputError, match="is missing"):
+        read_tracks(tracks)
