@@ -30,6 +30,7 @@ from pipeline.pose.models.detector import Detections, FusedDetector, PicoDetDete
 from pipeline.pose.models.pose import BlazePose, BodyAndFeet, MoveNetPose, PoseBatch, RTMPose, TinyPose
 from pipeline.pose.models.session import create_session, providers
 from pipeline.pose.pose2dfile import FEET, WORLD, Poses, SegmentInfo, write_pose2d
+from pipeline.pose.tracking import iou_matrix
 
 DEFAULT_DETECTOR = "rtmdet-nano-person"
 DEFAULT_POSE_MODEL = "movenet-lightning"
@@ -244,17 +245,6 @@ def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opt
         stop.set()
 
 
-def _iou(boxes: np.ndarray) -> np.ndarray:
-    """N x N intersection over union of boxes (x1, y1, x2, y2)."""
-    x1 = np.maximum(boxes[:, None, 0], boxes[None, :, 0])
-    y1 = np.maximum(boxes[:, None, 1], boxes[None, :, 1])
-    x2 = np.minimum(boxes[:, None, 2], boxes[None, :, 2])
-    y2 = np.minimum(boxes[:, None, 3], boxes[None, :, 3])
-    inter = np.clip(x2 - x1, 0, None) * np.clip(y2 - y1, 0, None)
-    area = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
-    return inter / np.maximum(area[:, None] + area[None, :] - inter, 1e-9)
-
-
 def needs_detection(previous: Detections | None, carried: Detections, keypoints: np.ndarray,
                     opts: Pose2dOptions) -> bool:
     """Whether a frame between detections needs the detector after all: someone was lost (too few
@@ -268,7 +258,7 @@ def needs_detection(previous: Detections | None, carried: Detections, keypoints:
     if ((keypoints[:, :, 2] >= opts.confirm_joint_score).sum(1) < opts.redetect_joints).any():
         return True
     if len(carried) > 1:
-        overlap = _iou(carried.boxes)
+        overlap = iou_matrix(carried.boxes, carried.boxes)
         np.fill_diagonal(overlap, 0.0)
         return bool((overlap > opts.redetect_overlap).any())
     return False
