@@ -129,10 +129,17 @@ def planted_points(probability: np.ndarray, threshold: float = PLANTED_PROBABILI
     ``hold`` (hysteresis, as in Canny's edges), a contact so found lasts for as long as the
     probability stays above ``hold`` on either side: the model is late to call a landing and early
     to call a lift-off, and a foot freed too early slides where it still stands."""
-    probability = np.asarray(probability)
-    core = _drop_short(probability > threshold, min_frames)
+    core = _drop_short(np.asarray(probability) > threshold, min_frames)
+    return held_contacts(core, probability, hold, threshold)
+
+
+def held_contacts(core: np.ndarray, probability: np.ndarray, hold: float | None, threshold: float) -> np.ndarray:
+    """T x K flags: each run of ``probability`` above ``hold`` that holds a ``core`` contact (found
+    above ``threshold``), whole: ``planted_points``' hysteresis for contacts already found; ``core``
+    as it is without a hold below the threshold."""
     if hold is None or hold >= threshold:
         return core
+    probability = np.asarray(probability)
     out = np.zeros_like(core)
     for k in range(core.shape[1]):
         for a, b in _runs(probability[:, k] > hold):

@@ -24,6 +24,7 @@ from pipeline.motion.world.contact import (
     carry_feet,
     foot_contact,
     foot_planted,
+    held_contacts,
     pin_feet,
     pin_planted,
     planted_points,
@@ -70,7 +71,7 @@ def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float,
         # The sure contacts anchor the path and the floor; the held ones are pinned too (a foot
         # that still stands must not slide), but their edges are where a foot may already move.
         anchors = planted_points(contact_probability, threshold, min_frames)
-        planted = planted_points(contact_probability, threshold, min_frames, hold)
+        planted = held_contacts(anchors, contact_probability, hold, threshold)
         root = refine_root(root.astype(np.float64), feet_cam.astype(np.float64) - joints_cam[:, :1], anchors)
     if feet_cam is not None:
         joints_cam = np.concatenate([joints_cam, feet_cam.astype(np.float64)], 1)

@@ -58,3 +58,15 @@ def any_batch(path: Path) -> bytes:
 def fixed_batch_of_one(session) -> bool:
     """Whether the session's first input takes exactly one image."""
     return session.get_inputs()[0].shape[0] == 1
+
+
+def run_batched(session, outputs, input_name: str, tensors: np.ndarray):
+    """``session.run`` on a batch of crops: one call when the session takes a batch, one per crop
+    (concatenated) when its model is fixed at one. ``outputs`` is one output name or a list."""
+    names = [outputs] if isinstance(outputs, str) else list(outputs)
+    if len(tensors) == 1 or not fixed_batch_of_one(session):
+        results = session.run(names, {input_name: tensors})
+    else:
+        parts = [session.run(names, {input_name: tensors[i:i + 1]}) for i in range(len(tensors))]
+        results = [np.concatenate([p[k] for p in parts]) for k in range(len(names))]
+    return results[0] if isinstance(outputs, str) else results

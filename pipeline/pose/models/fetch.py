@@ -271,10 +271,9 @@ def fetch_model(name: str, folder: Path, *, force: bool = False, convert: bool =
     spec = get_spec(name)
     target = Path(folder) / spec.file
     if not force:
-        from pipeline.pose.models.registry import SHIPPED, model_dirs
+        from pipeline.pose.models.registry import search_dirs
 
-        shipped = [SHIPPED / spec.file] if spec.shipped else []
-        for present in [target] + [d / spec.file for d in model_dirs(Path(folder).parent)] + shipped:
+        for present in [target] + [d / spec.file for d in search_dirs(spec, Path(folder).parent)]:
             if present.is_file():
                 verify_outputs(name, present)
                 log.info("%s: %s is present and verified", name, present)

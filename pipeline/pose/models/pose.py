@@ -12,6 +12,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from pipeline.pose.models.batching import run_batched
+
 COCO17 = (
     "nose", "left_eye", "right_eye", "left_ear", "right_ear", "left_shoulder", "right_shoulder",
     "left_elbow", "right_elbow", "left_wrist", "right_wrist", "left_hip", "right_hip",
@@ -155,18 +157,6 @@ def decode_heatmaps(heatmaps: np.ndarray, stride: float) -> np.ndarray:
     x += np.where(inside_x, 0.25 * np.sign(right - left), 0.0)
     y += np.where(inside_y, 0.25 * np.sign(down - up), 0.0)
     return np.stack([x * stride + (stride - 1) / 2, y * stride + (stride - 1) / 2, score], -1).astype(np.float32)
-
-
-def run_batched(session, outputs, input_name: str, tensors: np.ndarray):
-    """``session.run`` on a batch of crops: one call when the session takes a batch, one per crop
-    (concatenated) when its model is fixed at one. ``outputs`` is one output name or a list."""
-    names = [outputs] if isinstance(outputs, str) else list(outputs)
-    if session.get_inputs()[0].shape[0] != 1 or len(tensors) == 1:
-        results = session.run(names, {input_name: tensors})
-    else:
-        parts = [session.run(names, {input_name: tensors[i:i + 1]}) for i in range(len(tensors))]
-        results = [np.concatenate([p[k] for p in parts]) for k in range(len(names))]
-    return results[0] if isinstance(outputs, str) else results
 
 
 IMAGENET_MEAN = np.array([0.485, 0.456, 0.406], np.float32)

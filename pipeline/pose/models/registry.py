@@ -91,6 +91,11 @@ def model_dirs(project_root: Path | None = None) -> list[Path]:
     return dirs
 
 
+def search_dirs(spec: ModelSpec, project_root: Path | None = None) -> list[Path]:
+    """Where ``spec``'s file is looked for, in order: ``model_dirs``, then the package's copy if it ships."""
+    return model_dirs(project_root) + ([SHIPPED] if spec.shipped else [])
+
+
 def get_spec(name: str) -> ModelSpec:
     if name not in REGISTRY:
         raise ModelMissingError(f"unknown model {name!r}; registered: {', '.join(sorted(REGISTRY))}")
@@ -101,7 +106,7 @@ def resolve_model(name: str, project_root: Path | None = None, *, allow_download
     """The path of model ``name``'s file, downloading it (checksum verified) when absent."""
     spec = get_spec(name)
     dirs = model_dirs(project_root)
-    for folder in dirs + ([SHIPPED] if spec.shipped else []):
+    for folder in search_dirs(spec, project_root):
         candidate = folder / spec.file
         if candidate.is_file():
             return candidate
