@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -18,20 +19,29 @@ from tests.annotate.test_annotation import write_tracks
 from tests.conftest import PROJECT, make_test_video, skip_or_fail
 
 
-@pytest.fixture
-def site(tmp_path: Path):
+@contextlib.contextmanager
+def review_site(tmp_path: Path, token: str | None = None):
+    """A project with two tracks of vid_000 and its QC video, its review page served on a free port."""
     root = tmp_path / "p"
     root.mkdir()
     shutil.copy(PROJECT / "params.yaml", root / "params.yaml")
     write_tracks(root, "vid_000", {1: list(range(240)), 2: list(range(48, 144))})
     (root / "data/qc").mkdir(parents=True)
     make_test_video(root / "data/qc/vid_000.mp4", seconds=10, fps="24", size="320x180")
-    (root / "secret.txt").write_text("not for the web")
-    server = serve(ReviewApp(root, ProposalOptions(), 2.0), "127.0.0.1", 0)
+    server = serve(ReviewApp(root, ProposalOptions(), 2.0, token=token), "127.0.0.1", 0)
     threading.Thread(target=server.serve_forever, daemon=True).start()
-    yield root, f"http://127.0.0.1:{server.server_address[1]}"
-    server.shutdown()
-    server.server_close()
+    try:
+        yield root, f"http://127.0.0.1:{server.server_address[1]}"
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+@pytest.fixture
+def site(tmp_path: Path):
+    with review_site(tmp_path) as (root, url):
+        (root / "secret.txt").write_text("not for the web")
+        yield root, url
 
 
 def call(url: str, method: str = "GET", body: dict | None = None, headers: dict | None = None):
@@ -156,17 +166,25 @@ def _chromium():
     return webdriver.Chrome(service=Service(str(driver)), options=options)
 
 
+def open_page(browser, url: str, rows: int):
+    """Load a review page and wait until its table has ``rows`` rows; the wait, for what follows."""
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    browser.get(url)
+    wait = WebDriverWait(browser, 20)
+    wait.until(lambda b: len(b.find_elements(By.CSS_SELECTOR, "#rows tbody tr")) == rows)
+    return wait
+
+
 @pytest.mark.slow
 def test_browser_edit_save_round_trip(site, tmp_path: Path) -> None:
     from selenium.webdriver.common.by import By
-    from selenium.webdriver.support.ui import WebDriverWait
 
     root, url = site
     browser = _chromium()
     try:
-        browser.get(f"{url}/segment/vid_000")
-        wait = WebDriverWait(browser, 20)
-        wait.until(lambda b: len(b.find_elements(By.CSS_SELECTOR, "#rows tbody tr")) == 2)
+        wait = open_page(browser, f"{url}/segment/vid_000", 2)
         wait.until(lambda b: b.execute_script("return document.querySelector('#video').readyState") >= 1)
         # Move the playhead to 6.000 s and end track 1's span there with the ']' key.
         browser.execute_script("document.querySelector('#video').currentTime = 6.0")

@@ -8,34 +8,21 @@ import os
 import shutil
 import subprocess
 import sys
-import threading
 from pathlib import Path
 
 import pytest
 
-from pipeline.annotate.proposals import ProposalOptions
 from pipeline.annotate.review.access import choose_token
-from pipeline.annotate.review.server import ReviewApp, serve
-from tests.annotate.test_annotation import write_tracks
-from tests.annotate.test_review import _chromium, call
-from tests.conftest import PROJECT, make_test_video
+from tests.annotate.test_review import _chromium, call, open_page, review_site
+from tests.conftest import PROJECT
 
 TOKEN = "s3cret-token-for-the-team_0123"
 
 
 @pytest.fixture
 def team_site(tmp_path: Path):
-    root = tmp_path / "p"
-    root.mkdir()
-    shutil.copy(PROJECT / "params.yaml", root / "params.yaml")
-    write_tracks(root, "vid_000", {1: list(range(240)), 2: list(range(48, 144))})
-    (root / "data/qc").mkdir(parents=True)
-    make_test_video(root / "data/qc/vid_000.mp4", seconds=10, fps="24", size="320x180")
-    server = serve(ReviewApp(root, ProposalOptions(), 2.0, token=TOKEN), "127.0.0.1", 0)
-    threading.Thread(target=server.serve_forever, daemon=True).start()
-    yield root, f"http://127.0.0.1:{server.server_address[1]}"
-    server.shutdown()
-    server.server_close()
+    with review_site(tmp_path, TOKEN) as site:
+        yield site
 
 
 def signed_in(url: str) -> dict:
@@ -136,14 +123,11 @@ def test_the_start_up_line_prints_the_address_with_the_token(tmp_path: Path) -> 
 @pytest.mark.slow
 def test_browser_logs_in_through_the_token_url_and_saves_under_its_name(team_site, tmp_path: Path) -> None:
     from selenium.webdriver.common.by import By
-    from selenium.webdriver.support.ui import WebDriverWait
 
     root, url = team_site
     browser = _chromium()
     try:
-        browser.get(f"{url}/segment/vid_000?token={TOKEN}")
-        wait = WebDriverWait(browser, 20)
-        wait.until(lambda b: len(b.find_elements(By.CSS_SELECTOR, "#rows tbody tr")) == 2)
+        wait = open_page(browser, f"{url}/segment/vid_000?token={TOKEN}", 2)
         assert browser.current_url == f"{url}/segment/vid_000"  # the token left the address bar
         header = browser.find_element(By.TAG_NAME, "header").text
         assert "dance3d review · tracks · vid_000" in header and "trim ·" not in header

@@ -15,7 +15,7 @@ from pipeline.annotate.proposals import ProposalOptions
 from pipeline.annotate.review.server import ReviewApp, serve
 from pipeline.ingest.propose import Proposal, Proposals, ProposeOptions, Shot, Timeline, write_proposals
 from stages import download
-from tests.annotate.test_review import _chromium, call
+from tests.annotate.test_review import _chromium, call, open_page
 from tests.conftest import PROJECT, make_test_video
 
 OTHER_LINES = ("# Dance segments per video (a comment the annotator wrote)\n"
@@ -122,14 +122,11 @@ def test_the_raw_video_is_served_with_ranges_and_nothing_else_is(trim_site) -> N
 def test_browser_split_delete_add_save_and_an_inline_error(trim_site, tmp_path: Path) -> None:
     from selenium.webdriver.common.by import By
     from selenium.webdriver.common.keys import Keys
-    from selenium.webdriver.support.ui import WebDriverWait
 
     root, url = trim_site
     browser = _chromium()
     try:
-        browser.get(f"{url}/trim/vid")
-        wait = WebDriverWait(browser, 20)
-        wait.until(lambda b: len(b.find_elements(By.CSS_SELECTOR, "#rows tbody tr")) == 1)  # the proposal
+        wait = open_page(browser, f"{url}/trim/vid", 1)  # the proposal
         wait.until(lambda b: b.execute_script("return document.querySelector('#video').readyState") >= 1)
         body = browser.find_element(By.TAG_NAME, "body")
 
