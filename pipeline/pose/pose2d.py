@@ -25,6 +25,7 @@ from typing import Any, Callable, Iterator
 
 import numpy as np
 
+from pipeline.core.errors import InputError
 from pipeline.ingest.segmentvideo import SegmentVideo, frames_of
 from pipeline.pose.models.detector import Detections, FusedDetector, PicoDetDetector, RTMDetDetector, largest
 from pipeline.pose.models.pose import BlazePose, BodyAndFeet, MoveNetPose, PoseBatch, RTMPose, TinyPose
@@ -331,7 +332,10 @@ def model_files(root: Path, params: dict) -> tuple[ModelFiles, dict[str, str]]:
                        tuple((str(paths[p.name]), p.kind, p.input_size) for p in poses),
                        int(params.get("threads", 1)), Pose2dOptions.from_params(params).detector_floor,
                        float(params.get("crop_padding", 1.25)), str(params.get("device", "auto")))
-    providers(files.device)  # an unknown device, or cuda without CUDA: one clear error before any work
+    try:  # an unknown device, or cuda without CUDA: one clear line before any work
+        providers(files.device)
+    except (ValueError, RuntimeError) as exc:
+        raise InputError(root / "params.yaml", f"pose2d.{exc}") from None
     return files, {name: sha256_file(path) for name, path in paths.items()}
 
 

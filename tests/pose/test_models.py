@@ -12,7 +12,7 @@ import onnx
 import pytest
 from onnx import TensorProto, helper, numpy_helper
 
-from pipeline.core.errors import ModelMissingError
+from pipeline.core.errors import InputError, ModelMissingError
 from pipeline.pose.models import registry
 from pipeline.pose.models.detector import Detections, RTMDetDetector, largest
 from pipeline.pose.models.pose import (
@@ -227,5 +227,8 @@ def test_the_pose2d_models_refuse_cuda_without_it_before_any_work(monkeypatch, m
     root = Path(__file__).resolve().parents[2]
     files, _ = model_files(root, {"device": "cpu"})
     assert files.device == "cpu"
-    with pytest.raises(RuntimeError, match="no CUDA"):
+    # A stage gets one line naming the setting's file, not a traceback.
+    with pytest.raises(InputError, match=r"params\.yaml: pose2d\.device 'cuda'.*no CUDA.*\.\[gpu\]"):
         model_files(root, {"device": "cuda"})
+    with pytest.raises(InputError, match=r"params\.yaml: pose2d\.device 'gpu'.*auto, cpu, cuda"):
+        model_files(root, {"device": "gpu"})
