@@ -9,7 +9,9 @@ focal length assumed from the frame size: pipeline/motion/world/trajectory.py; s
 (left heel, right heel, left toe tip, right toe tip x (x, y, z), root-relative like joints;
 NaN when the lifter has no feet; schema 3), contact (the probability that the left heel, right
 heel, left toe tip, right toe tip is planted, from the contact model: world/contact_model.py;
-NaN without one; schema 4).
+NaN without one; schema 4), feet_rays (the unit directions, camera frame, in which the left heel,
+right heel, left toe tip and right toe tip are seen: their 2D keypoints and the assumed focal
+length; where a planted one meets the floor fixes the root's depth; NaN without 2D feet; schema 5).
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ import pyarrow.parquet as pq
 
 from pipeline.core.storage import column_array, fixed_list, read_meta, write_parquet
 
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 MOTION_SCHEMA = pa.schema(
     [
         ("clip_id", pa.string()),
@@ -37,6 +39,7 @@ MOTION_SCHEMA = pa.schema(
         ("root", pa.list_(pa.float32(), 3)),
         ("feet", pa.list_(pa.float32(), 12)),
         ("contact", pa.list_(pa.float32(), 4)),
+        ("feet_rays", pa.list_(pa.float32(), 12)),
     ]
 )
 
@@ -53,6 +56,7 @@ class MotionClip:
     root: np.ndarray | None = None  # n x 3 root path, camera frame, metres (None: not known)
     feet: np.ndarray | None = None  # n x 4 x 3 heels and toe tips, like joints (None: the lifter has none)
     contact: np.ndarray | None = None  # n x 4 contact probabilities of the heels and toe tips (None: not known)
+    feet_rays: np.ndarray | None = None  # n x 4 x 3 unit directions the heels and toes are seen in (None: unknown)
 
 
 def clips_to_table(clips: list[MotionClip]) -> pa.Table:
@@ -76,6 +80,8 @@ def clips_to_table(clips: list[MotionClip]) -> pa.Table:
                                    for c in clips])),
         fixed_list(np.concatenate([c.contact if c.contact is not None else np.full((len(c.frame), 4), np.nan)
                                    for c in clips])),
+        fixed_list(np.concatenate([c.feet_rays.reshape(-1, 12) if c.feet_rays is not None
+                                   else np.full((len(c.frame), 12), np.nan) for c in clips])),
     ], schema=MOTION_SCHEMA)
 
 
@@ -121,12 +127,14 @@ def read_clips(path: Path) -> list[MotionClip]:
     root = column_array(table, "root", (3,)) if "root" in table.column_names else None
     feet = column_array(table, "feet", (4, 3)) if "feet" in table.column_names else None
     contact = column_array(table, "contact", (4,)) if "contact" in table.column_names else None
+    rays = column_array(table, "feet_rays", (4, 3)) if "feet_rays" in table.column_names else None
     clips = []
     for clip_id in dict.fromkeys(ids):  # file order
         rows = np.flatnonzero(ids == clip_id)
         path = None if root is None or np.isnan(root[rows]).all() else root[rows]
         heels_toes = None if feet is None or np.isnan(feet[rows]).all() else feet[rows]
         planted = None if contact is None or np.isnan(contact[rows]).all() else contact[rows]
+        seen = None if rays is None or np.isnan(rays[rows]).all() else rays[rows]
         clips.append(MotionClip(clip_id, int(track[rows[0]]), frame[rows], time[rows], joints[rows],
-                                interp[rows], filled[rows], path, heels_toes, planted))
+                                interp[rows], filled[rows], path, heels_toes, planted, seen))
     return clips

@@ -57,7 +57,7 @@ class ResampleJob:
 
 def resample_clip(clip, fps: float):
     """A motion clip on the ``fps`` grid (None when no grid point falls inside it): cubic for the
-    motion, linear for the contact probabilities (a spline would overshoot 0 and 1)."""
+    motion, linear for the contact probabilities (a spline would overshoot 0 and 1) and the sight rays."""
     from pipeline.motion.motionfile import MotionClip
 
     frames, joints = resample_cubic(clip.time, clip.joints, fps)
@@ -68,8 +68,12 @@ def resample_clip(clip, fps: float):
     feet = None if clip.feet is None else resample_cubic(clip.time, clip.feet, fps)[1].astype(np.float32)
     at = np.clip(frames / fps, clip.time[0], clip.time[-1])
     contact = None if clip.contact is None else interpolate_linear(at, clip.time, clip.contact).astype(np.float32)
+    rays = None
+    if clip.feet_rays is not None:  # directions: between the two, then of unit length again
+        rays = interpolate_linear(at, clip.time, clip.feet_rays)
+        rays = (rays / np.linalg.norm(rays, axis=-1, keepdims=True)).astype(np.float32)
     return MotionClip(clip.clip_id, clip.track_id, frames, frames / fps, joints.astype(np.float32),
-                      clip.interpolated[near], clip.filled_joints[near], root, feet, contact)
+                      clip.interpolated[near], clip.filled_joints[near], root, feet, contact, rays)
 
 
 def resample_segment(job: ResampleJob) -> dict:

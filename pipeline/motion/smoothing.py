@@ -93,7 +93,8 @@ class SmoothJob:
 
 
 def smooth_clip(clip, lamb: float):
-    """A motion clip HP-filtered: joints, root path and feet (contact probabilities pass unchanged)."""
+    """A motion clip HP-filtered: joints, root path and feet (contact probabilities and sight rays,
+    observations rather than motion, pass unchanged)."""
     trend = hp_trend(clip.joints.reshape(len(clip.joints), -1), lamb).reshape(clip.joints.shape)
     root = None if clip.root is None else hp_trend(clip.root.astype(np.float64), lamb).astype(np.float32)
     feet = None if clip.feet is None else hp_trend(clip.feet.reshape(len(clip.feet), -1).astype(np.float64),

@@ -58,3 +58,29 @@ def test_resampling_reproduces_cubics_on_an_exact_24_fps_grid(fps: float) -> Non
 def test_grid_frames_include_exact_endpoints() -> None:
     assert list(grid_frames(1.0, 2.0)) == list(range(24, 49))
     assert list(grid_frames(1.0 + 1e-9, 1.5)) == list(range(24, 37))
+
+
+def test_sight_rays_survive_the_motion_file_smoothing_and_resampling_as_unit_directions(tmp_path) -> None:
+    from pipeline.motion.motionfile import MotionClip, read_motion, write_motion
+    from pipeline.motion.resample import resample_clip
+    from pipeline.motion.smoothing import smooth_clip
+    from pipeline.motion.world.trajectory import sight_rays
+
+    n = 60
+    rng = np.random.default_rng(0)
+    xy = np.array([540.0, 1500.0]) + np.cumsum(rng.normal(0, 3, (n, 4, 2)), 0)   # heels and toes, pixels
+    rays = sight_rays(xy, 1200.0, 1080, 1920).astype(np.float32)
+    joints = rng.normal(0, 0.3, (n, 17, 3)).astype(np.float32)
+    clip = MotionClip("vid_000_1_0", 1, np.arange(n, dtype=np.int32), np.arange(n) / 30.0, joints,
+                      np.zeros(n, bool), np.zeros(n, np.int8), feet_rays=rays)
+    bare = MotionClip("vid_000_2_0", 2, np.arange(n, dtype=np.int32), np.arange(n) / 30.0, joints,
+                      np.zeros(n, bool), np.zeros(n, np.int8))
+    path = tmp_path / "m.parquet"
+    write_motion(path, [smooth_clip(clip, 1.0), bare], {"segment_id": "vid_000", "fps": 30.0},
+                 fingerprint="x", params={}, inputs={})
+    kept, without = read_motion(path).clips
+    assert np.array_equal(kept.feet_rays, rays) and without.feet_rays is None  # observations: not smoothed
+    at24 = resample_clip(kept, 24.0)
+    assert np.allclose(np.linalg.norm(at24.feet_rays, axis=-1), 1.0, atol=1e-6)
+    # A ray points where its pixel is: the centre pixel looks straight ahead.
+    assert np.allclose(sight_rays(np.array([540.0, 960.0]), 1200.0, 1080, 1920), [0.0, 0.0, 1.0])

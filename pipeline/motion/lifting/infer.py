@@ -123,6 +123,7 @@ class LiftedClip:
     root: np.ndarray          # T x 3 the per-frame root path, camera frame (trajectory.root_from_2d)
     contact: np.ndarray | None  # T x 4 contact probabilities of the heels and toe tips (None: no contact model)
     filled: np.ndarray        # T x 17 2D joints filled because their confidence was low
+    feet_rays: np.ndarray | None = None  # T x 4 x 3 where the heels and toe tips are seen (None: no 2D feet)
 
 
 @dataclass(frozen=True)
@@ -154,7 +155,7 @@ def lift_clips(models: LiftModels, keypoints: list[np.ndarray], feet: list[np.nd
     """2D clips (T x 17 x 3 pixels and scores; heels and toes T x 4 x 3 or None) -> 3D, the root's
     path and the contact probabilities: what the lift stage writes, and what ``dance3d eval world``
     runs on filmed motion capture."""
-    from pipeline.motion.world.trajectory import assumed_focal, place_root
+    from pipeline.motion.world.trajectory import assumed_focal, place_root, sight_rays
 
     if not keypoints:
         return []
@@ -165,12 +166,13 @@ def lift_clips(models: LiftModels, keypoints: list[np.ndarray], feet: list[np.nd
     lifted = lifter.lift(inputs, width, height, flip=flip)
     focal = assumed_focal(width, height)
     out = []
-    for seen, joints, (xy, mask) in zip(full, lifted, filled):
+    for seen, joints, (xy, mask), heels_toes in zip(full, lifted, filled, feet):
         n = joints.shape[1]  # 21 for a lifter with feet: its heels and toe tips help place it
         joints, root = place_root(joints, xy[:, :n], focal, width, height, scores=seen[:, :n, 2])
         contact = None if models.contact is None else models.contact.probabilities(xy, fps, flip=flip)
+        rays = None if heels_toes is None else sight_rays(xy[:, 17:21], focal, width, height).astype(np.float32)
         out.append(LiftedClip(joints[:, :17], joints[:, 17:] if lifter.feet else None, root.astype(np.float32),
-                              contact, mask[:, :17]))
+                              contact, mask[:, :17], rays))
     return out
 
 
@@ -183,7 +185,7 @@ def lift_segment(models: LiftModels, job: LiftJob) -> dict:
     lifted = lift_clips(models, [c.keypoints for c in clean.clips], [c.feet for c in clean.clips],
                         clean.segment.width, clean.segment.height, clean.segment.fps, job.min_score, job.flip)
     clips = [MotionClip(c.clip_id, c.track_id, c.frame.astype(np.int32), clean.time(c), lc.joints,
-                        c.interpolated, lc.filled.sum(1).astype(np.int8), lc.root, lc.feet, lc.contact)
+                        c.interpolated, lc.filled.sum(1).astype(np.int8), lc.root, lc.feet, lc.contact, lc.feet_rays)
              for c, lc in zip(clean.clips, lifted)]
     segment = {"segment_id": clean.segment.segment_id, "fps": clean.segment.fps, "width": clean.segment.width,
                "height": clean.segment.height}
