@@ -97,6 +97,34 @@ def test_planted_feet_take_the_depth_jitter_out_of_the_root_path() -> None:
     assert np.abs(free - true).mean() < np.abs(noisy - true).mean()
 
 
+def test_where_planted_feet_are_seen_on_the_floor_takes_the_depth_drift_out_of_the_root_path() -> None:
+    from pipeline.motion.world.trajectory import floor_anchors
+
+    # A level camera 1.2 m above the floor (camera frame: y down, so the floor is y = 1.2) and a
+    # dancer stepping toward it from 4 m to 2.5 m, left and right foot planted in turn.
+    n = 120
+    t = np.arange(n)
+    true = np.column_stack([0.3 * np.sin(t / 15), np.full(n, 0.25), 4.0 - 1.5 * t / n])
+    planted = np.zeros((n, 2), bool)
+    feet = true[:, None] + np.array([[-0.1, 0.85, 0.0], [0.1, 0.85, 0.0]])   # lifted feet
+    for k, start in enumerate(range(0, n, 30)):
+        side = k % 2
+        planted[start:start + 30, side] = True
+        feet[start:start + 30, side] = true[start] + [0.2 * side - 0.1, 0.95, 0.0]  # on the floor, still
+    points = feet - true[:, None]
+    rays = feet / np.linalg.norm(feet, axis=-1, keepdims=True)
+    # The per-frame root drifts slowly along its ray (+-12 cm): the planted feet's stillness cannot see it.
+    noisy = true * (1 + 0.03 * np.sin(t / 40))[:, None]
+    up, level = np.array([0.0, -1.0, 0.0]), -1.2
+    still = refine_root(noisy, points, planted)
+    floored = refine_root(noisy, points, planted, floor=floor_anchors(rays, points, planted, up, level))
+    assert np.linalg.norm(still - true, axis=-1).mean() > 0.04
+    assert np.linalg.norm(floored - true, axis=-1).mean() < 0.01
+    # A ray that does not reach the floor ahead (a point seen above the horizon) gives no anchor.
+    _, weight = floor_anchors(-rays, points, planted, up, level)
+    assert not weight.any()
+
+
 def test_the_floor_normal_comes_from_the_planted_points_where_they_spread() -> None:
     rng = np.random.default_rng(4)
     tilt = np.radians(12.0)

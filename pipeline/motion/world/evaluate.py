@@ -183,14 +183,15 @@ def film_and_ground(models: LiftModels, seq: MocapSequence, camera: Camera, rng:
                            VIDEO_FPS, min_score=0.3, flip=True)
     n = len(xy)
     clip = MotionClip("run", 1, np.arange(n, dtype=np.int32), np.arange(n) / VIDEO_FPS, lifted.joints,
-                      np.zeros(n, bool), np.zeros(n, np.int8), lifted.root, lifted.feet, lifted.contact)
+                      np.zeros(n, bool), np.zeros(n, np.int8), lifted.root, lifted.feet, lifted.contact,
+                      lifted.feet_rays)
     clip = resample_clip(smooth_clip(clip, lamb), CORPUS_FPS)
     truth = _truth(seq, camera, clip.time)
     out = {}
     for name, probability in (("learned", clip.contact), ("baseline", None)):
         if name == "learned" and probability is None:
             continue
-        grounded = ground_clip(clip.joints, clip.root, CORPUS_FPS, clip.feet, probability)
+        grounded = ground_clip(clip.joints, clip.root, CORPUS_FPS, clip.feet, probability, feet_rays=clip.feet_rays)
         out[name] = {**scores(grounded, truth, grounded.root_camera, CORPUS_FPS), "feet_in_frame": in_frame}
     return out
 

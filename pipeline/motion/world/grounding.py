@@ -4,8 +4,9 @@ one skeleton, foot contact with pinned feet, and joint rotations (6D) on that sk
 With learned contact probabilities (``contact_model``, carried in the motion files) and the
 feet, planted heels and toe tips drive the world: they anchor the root path
 (``trajectory.refine_root``), set the floor (their median height is y = 0) and are pinned
-where they stand, on it. Without them (motion files from before, a lifter without feet) the
-older rules hold: the per-frame root, the floor at the lowest foot point's 5th percentile and
+where they stand, on it; where they are seen (the sight rays the lift stage records), the floor
+they stand on fixes the root's depth (``root_on_floor``). Without them (motion files from
+before, a lifter without feet) the older rules hold: the per-frame root, the floor at the lowest foot point's 5th percentile and
 contact judged at the ankles (``contact.foot_contact``).
 """
 
@@ -32,7 +33,7 @@ from pipeline.motion.world.contact import (
 )
 from pipeline.motion.world.gravity import CameraEstimate, to_world
 from pipeline.motion.world.rotations import BVH_JOINTS, solve_rotations
-from pipeline.motion.world.trajectory import refine_root
+from pipeline.motion.world.trajectory import floor_anchors, refine_root
 
 ROTATION_JOINTS = tuple(j.name for j in BVH_JOINTS)
 
@@ -56,14 +57,28 @@ class GroundedClip:
     root_camera: np.ndarray | None = None      # T x 3 the root path used, camera frame (refined when learned)
 
 
+def root_on_floor(joints_cam: np.ndarray, points: np.ndarray, per_frame: np.ndarray, root: np.ndarray,
+                  anchors: np.ndarray, rays: np.ndarray) -> np.ndarray:
+    """The root path refined again (``refine_root`` from the per-frame path ``per_frame``), now
+    also held where the planted points (``anchors``, T x 4) are seen on the floor: the floor's
+    tilt and height come from the first refined path ``root`` (``to_world``: up from the body and
+    the planted points' plane, the floor at their median height), the points' sight rays
+    (``rays``, T x 4 x 3) meet it. ``points``: heels and toe tips, root-relative, camera frame."""
+    body = np.concatenate([joints_cam, joints_cam[:, :1] + points], 1)
+    _, camera = to_world(body, root=root, planted=anchors)
+    up = camera.rotation[1]  # world up in camera coordinates
+    level = float(np.median(((root[:, None] + points) @ up)[anchors]))
+    return refine_root(per_frame, points, anchors, floor=floor_anchors(rays, points, anchors, up, level))
+
+
 def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float,
                 feet_cam: np.ndarray | None = None, contact_probability: np.ndarray | None = None, *,
-                threshold: float = PLANTED_PROBABILITY, min_frames: int = MIN_PLANTED_FRAMES,
-                hold: float | None = HOLD_PROBABILITY) -> GroundedClip:
+                feet_rays: np.ndarray | None = None, threshold: float = PLANTED_PROBABILITY,
+                min_frames: int = MIN_PLANTED_FRAMES, hold: float | None = HOLD_PROBABILITY) -> GroundedClip:
     """Camera-frame root-relative joints (T x 17 x 3), the root path (T x 3 or None), the heels
     and toe tips (T x 4 x 3, like the joints, or None) and their contact probabilities (T x 4 or
     None; a point is planted above ``threshold`` for ``min_frames`` frames in a row, and stays
-    planted while above ``hold``)."""
+    planted while above ``hold``), and the directions they are seen in (T x 4 x 3 or None)."""
     joints_cam = joints_cam.astype(np.float64)
     learned = contact_probability is not None and feet_cam is not None and root is not None
     planted = anchors = None
@@ -72,7 +87,10 @@ def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float,
         # that still stands must not slide), but their edges are where a foot may already move.
         anchors = planted_points(contact_probability, threshold, min_frames)
         planted = held_contacts(anchors, contact_probability, hold, threshold)
-        root = refine_root(root.astype(np.float64), feet_cam.astype(np.float64) - joints_cam[:, :1], anchors)
+        per_frame, points = root.astype(np.float64), feet_cam.astype(np.float64) - joints_cam[:, :1]
+        root = refine_root(per_frame, points, anchors)
+        if feet_rays is not None and anchors.any():
+            root = root_on_floor(joints_cam, points, per_frame, root, anchors, feet_rays.astype(np.float64))
     if feet_cam is not None:
         joints_cam = np.concatenate([joints_cam, feet_cam.astype(np.float64)], 1)
     everything, camera = to_world(joints_cam, root=None if root is None else root.astype(np.float64),
@@ -94,6 +112,12 @@ def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float,
                         None if feet is None else carry_feet(feet, pinned, motion.joints), planted,
                         None if contact_probability is None else np.asarray(contact_probability, np.float32),
                         float(np.linalg.norm(fitted - world, axis=-1).mean()), camera, root)
+
+
+def ground_motion(clip, fps: float, **rules) -> GroundedClip:
+    """``ground_clip`` on a motion file's clip (``motionfile.MotionClip``), with all it carries;
+    ``rules``: ``ground_clip``'s contact thresholds."""
+    return ground_clip(clip.joints, clip.root, fps, clip.feet, clip.contact, feet_rays=clip.feet_rays, **rules)
 
 
 # --- the ground stage's worker -----------------------------------------------------------
@@ -118,9 +142,8 @@ def ground_segment(job: GroundJob) -> dict:
     motion = read_motion(job.motion24)
     clips = []
     for clip in motion.clips:
-        grounded = ground_clip(clip.joints, clip.root, motion.fps, clip.feet, clip.contact,
-                               threshold=job.contact_threshold, min_frames=job.min_contact_frames,
-                               hold=job.contact_hold)
+        grounded = ground_motion(clip, motion.fps, threshold=job.contact_threshold,
+                                 min_frames=job.min_contact_frames, hold=job.contact_hold)
         clips.append(world_clip(clip.clip_id, clip.track_id, clip.frame, clip.time, grounded))
     segment = {k: motion.meta.get(k) for k in ("segment_id", "fps", "source_fps", "width", "height")}
     write_world(job.out, clips, segment, fingerprint=job.fingerprint, params=job.params, inputs=job.inputs)

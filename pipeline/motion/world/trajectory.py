@@ -13,6 +13,11 @@ Two things the lifter's pose needs before it is placed (``place_root``): it is t
 camera it was lifted for, aimed at the dancer, onto the dancer's viewing ray
 (``toward_camera_axis``), and it is given one skeleton for the clip, so that a frame whose bones
 the lifter made 10 % longer is not put 10 % further away.
+
+The per-frame placement is sure across the viewing ray and unsure along it: its depth comes from
+how large the body looks, and drifts with the lifter's errors over seconds. Where a planted heel or
+toe tip is seen, the floor fixes that depth (``floor_anchors``): its sight ray meets the floor at
+one point, steeply for a camera above the floor, so a pixel there is centimetres.
 """
 
 from __future__ import annotations
@@ -25,6 +30,13 @@ from pipeline.motion.world.bones import apply_skeleton, fit_skeleton
 # The joints whose pixels place the root: the twelve COCO and H36M share, then the heels and toe
 # tips (joints 17-20 of both the 21-joint keypoints and the 21-joint lifted pose).
 SHARED_WITH_FEET = COCO_H36M_SHARED + tuple((j, j) for j in range(17, 21))
+
+
+def sight_rays(xy: np.ndarray, focal: float, width: float, height: float) -> np.ndarray:
+    """Unit directions (… x 3, camera frame) in which pixels ``xy`` (… x 2) are seen."""
+    uv = (np.asarray(xy, np.float64) - [width / 2, height / 2]) / focal
+    rays = np.concatenate([uv, np.ones(uv.shape[:-1] + (1,))], -1)
+    return rays / np.linalg.norm(rays, axis=-1, keepdims=True)
 
 
 def assumed_focal(width: float, height: float, equiv_mm: float = 26.0) -> float:
@@ -108,15 +120,38 @@ PLANTED = 0.005       # a planted point's motion from one frame to the next
 ACCELERATION = 0.01  # the root's second difference per frame
 
 
+FLOOR = 0.05         # a root placed where a planted point's sight ray meets the floor
+MIN_FLOOR_SINE = float(np.sin(np.radians(5.0)))  # rays nearer the horizon than this meet the floor too far off
+
+
+def floor_anchors(rays: np.ndarray, points: np.ndarray, planted: np.ndarray, up: np.ndarray, level: float,
+                  sigma: float = FLOOR) -> tuple[np.ndarray, np.ndarray]:
+    """Root positions (T x 3, camera frame) from where the planted points are seen on the floor, and
+    their weights (T, 1 / sigma^2 per point; 0 where none is seen): a planted point lies where its
+    sight ray (``rays``: T x P unit vectors) meets the floor ``up . X = level`` (``up``: world up in
+    camera coordinates), and the root is that point less its root-relative offset (``points``:
+    T x P x 3). Only rays at least 5 degrees below the horizon count: nearer it, a pixel's error
+    moves the meeting point by metres."""
+    den = np.asarray(rays, np.float64) @ np.asarray(up, np.float64)
+    seen = np.asarray(planted, bool) & (den * np.sign(level) > MIN_FLOOR_SINE) & np.isfinite(den)
+    reach = np.where(seen, level / np.where(seen, den, 1.0), 0.0)
+    roots = np.where(seen[..., None], reach[..., None] * np.nan_to_num(rays) - np.nan_to_num(points), 0.0)
+    count = seen.sum(1)
+    return roots.sum(1) / np.maximum(count, 1)[:, None], count / sigma ** 2
+
+
 def refine_root(root: np.ndarray, points: np.ndarray, planted: np.ndarray, *, across: float = ACROSS_RAY,
-                along: float = ALONG_RAY, still: float = PLANTED, accel: float = ACCELERATION) -> np.ndarray:
+                along: float = ALONG_RAY, still: float = PLANTED, accel: float = ACCELERATION,
+                floor: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """The root path (T x 3, camera frame) that planted feet anchor, in the spirit of WHAM's and
     GVHMR's refiners but as one linear least-squares problem over the whole clip: each frame's
     root stays near the per-frame estimate ``root`` (tightly across its viewing ray, loosely in
     depth), a planted point (``points``: T x P x 3 root-relative, camera frame; ``planted``: T x P
     bool) does not move between two frames where it is planted, and the root's acceleration is
     small. Depth jitter and drift while a foot is planted come out; travel and jumps between
-    contacts stay with the per-frame estimate."""
+    contacts stay with the per-frame estimate. With ``floor`` (``floor_anchors``: targets T x 3 and
+    weights T), the root also stays near where the planted points are seen on the floor, which
+    takes the per-frame estimate's slow drift in depth out."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.linalg import spsolve
 
@@ -136,9 +171,13 @@ def refine_root(root: np.ndarray, points: np.ndarray, planted: np.ndarray, *, ac
         cols.append((3 * j[:, None, None] + b).ravel())
         vals.append(m.ravel())
 
+    rhs = np.einsum("tij,tj->ti", anchor, root)
+    if floor is not None:
+        targets, weights = floor
+        anchor = anchor + np.eye(3)[None] * weights[:, None, None]
+        rhs = rhs + weights[:, None] * targets
     t = np.arange(n)
     block(t, t, anchor)
-    rhs = np.einsum("tij,tj->ti", anchor, root)
     # Planted between frames t and t+1: r[t+1] - r[t] = -(q[t+1] - q[t]), weight by how many points agree.
     both = (planted[:-1] & planted[1:]).astype(np.float64)
     weight = both.sum(1) / still ** 2
