@@ -6,8 +6,8 @@ feet, planted heels and toe tips drive the world: they anchor the root path
 (``trajectory.refine_root``), set the floor (their median height is y = 0) and are pinned
 where they stand, on it; where they are seen (the sight rays the lift stage records), the floor
 they stand on fixes the root's depth (``root_on_floor``). Without them (motion files from
-before, a lifter without feet) the older rules hold: the per-frame root, the floor at the lowest foot point's 5th percentile and
-contact judged at the ankles (``contact.foot_contact``).
+before, a lifter without feet) the older rules hold: the per-frame root, the floor at the lowest
+foot point's 5th percentile and contact judged at the ankles (``contact.foot_contact``).
 """
 
 from __future__ import annotations
