@@ -1,7 +1,8 @@
 """Proposed manifests: which tracks look like real dancers, and where a track seems to jump.
 
 An annotator should mostly confirm. A track is proposed ``keep=no``, with the reason, when
-it is too short, much smaller than the segment's main dancers, nearly static, poorly
+it is too short, much smaller than the segment's main dancers, nearly static (against the
+group too: dancers who move together get one verdict), poorly
 seen (low keypoint confidence), or its legs are not seen (seated behind instruments, cut
 off by the frame: no use for 3D dance, and the usual look of musicians and audience). A
 kept track is cut in two where it jumps: a sudden large displacement, or a break in
@@ -23,7 +24,8 @@ from pipeline.pose.tracking import oks_matrix
 class ProposalOptions:
     min_track_seconds: float = 2.0     # shorter tracks: keep=no (too short)
     min_relative_height: float = 0.5   # median box height below this share of the tallest main track: small
-    min_motion: float = 0.035          # motion energy below this: static (audience, seated people)
+    min_motion: float = 0.035          # motion energy below this: static (audience, seated people) ...
+    static_share: float = 0.5          # ... unless the main dancers move and this one moves at least this share as much
     min_score: float = 0.3             # mean keypoint confidence below this: poorly seen
     min_leg_score: float = 0.5         # mean confidence of hips, knees and ankles below this: legs not seen
     jump_ratio: float = 0.5            # centre moves more than this x box height in one step: cut
@@ -78,14 +80,37 @@ def jump_points(tracks: SegmentTracks, track_id: int, opts: ProposalOptions) -> 
     return cuts
 
 
-def reject_reason(stats: TrackStats, main_height: float, opts: ProposalOptions) -> str:
+def main_tracks(stats: list[TrackStats], main_height: float, opts: ProposalOptions) -> list[TrackStats]:
+    """The segment's main dancers: tracks long enough and not much smaller than the tallest."""
+    return [s for s in stats if s.end - s.start >= opts.min_track_seconds
+            and s.box_height >= opts.min_relative_height * main_height]
+
+
+def group_motion(stats: list[TrackStats], main_height: float, opts: ProposalOptions) -> float:
+    """The median motion of the segment's main dancers (NaN without any)."""
+    main = main_tracks(stats, main_height, opts)
+    return float(np.median([s.motion for s in main])) if main else float("nan")
+
+
+def is_static(motion: float, group: float, opts: ProposalOptions) -> bool:
+    """Below the fixed threshold, and either the main dancers hardly move either or this track
+    moves much less than they do. A fixed threshold alone split a trio dancing one choreography
+    (0.035, 0.037, 0.038 against 0.035): dancers who move together must get one verdict."""
+    if motion >= opts.min_motion:
+        return False
+    return not group >= opts.min_motion or motion < opts.static_share * group
+
+
+def reject_reason(stats: TrackStats, main_height: float, opts: ProposalOptions, group: float = float("nan")) -> str:
+    """Why a track is not proposed as a dancer ('' when it is); ``group``: ``group_motion``."""
     reasons = []
     if stats.end - stats.start < opts.min_track_seconds:
         reasons.append(f"too short ({stats.end - stats.start:.1f} s < {opts.min_track_seconds} s)")
     if stats.box_height < opts.min_relative_height * main_height:
         reasons.append(f"small ({stats.box_height:.2f} of frame height vs {main_height:.2f} for the main dancers)")
-    if stats.motion < opts.min_motion:
-        reasons.append(f"nearly static (motion {stats.motion:.3f} < {opts.min_motion})")
+    if is_static(stats.motion, group, opts):
+        beside = f", the group's {group:.3f}" if np.isfinite(group) else ""
+        reasons.append(f"nearly static (motion {stats.motion:.3f} < {opts.min_motion}{beside})")
     if stats.mean_score < opts.min_score:
         reasons.append(f"low keypoint confidence ({stats.mean_score:.2f} < {opts.min_score})")
     if stats.leg_score < opts.min_leg_score:
@@ -99,11 +124,12 @@ def propose(tracks: SegmentTracks, opts: ProposalOptions = ProposalOptions()) ->
     stats = {t: track_stats(tracks, t, opts.kp_min_score) for t in tracks.ids}
     long_enough = [s.box_height for s in stats.values() if s.end - s.start >= opts.min_track_seconds]
     main_height = max(long_enough or [s.box_height for s in stats.values()] or [0.0])
+    group = group_motion(list(stats.values()), main_height, opts)
     spans: list[Span] = []
     for track_id, st in stats.items():
         info = {"frames": st.frames, "mean_score": f"{st.mean_score:.2f}", "box_height": f"{st.box_height:.2f}",
                 "motion": f"{st.motion:.3f}"}
-        reason = reject_reason(st, main_height, opts)
+        reason = reject_reason(st, main_height, opts, group)
         if reason:
             spans.append(Span(track_id, st.start, st.end, False, info={**info, "reason": reason}))
             continue

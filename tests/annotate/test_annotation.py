@@ -217,3 +217,21 @@ def test_seeding_keeps_the_dancers_and_rejects_the_static_group(project: Path, d
     seen = [len(np.unique(tracks.frame[below & (centre_x >= lo) & (centre_x < hi)])) / tracks.frames_total
             for lo, hi in ((0, 290), (290, 560), (560, 664))]
     assert seen[0] >= 0.95 and seen[1] >= 0.95 and seen[2] > 0.03, seen
+
+
+def test_dancers_who_move_together_get_the_same_verdict_and_a_bystander_among_dancers_is_static() -> None:
+    from pipeline.annotate.proposals import TrackStats, group_motion, reject_reason
+
+    def track(k: int, motion: float) -> TrackStats:
+        return TrackStats(k, 650, 0.0, 27.0, 0.8, 0.6, motion)
+
+    opts = ProposalOptions()
+    # A trio dancing one choreography: one of them a hair under the fixed threshold (0.0348 < 0.035).
+    trio = [track(1, 0.0348), track(2, 0.037), track(3, 0.038)]
+    assert [reject_reason(t, 0.6, opts, group_motion(trio, 0.6, opts)) for t in trio] == ["", "", ""]
+    # A bystander among dancers is judged against them; a group that hardly moves is static as a whole.
+    crew = [track(1, 0.10), track(2, 0.12), track(3, 0.011)]
+    assert [bool(reject_reason(t, 0.6, opts, group_motion(crew, 0.6, opts))) for t in crew] == [False, False, True]
+    seated = [track(1, 0.02), track(2, 0.021), track(3, 0.019)]
+    verdicts = [reject_reason(t, 0.6, opts, group_motion(seated, 0.6, opts)) for t in seated]
+    assert all("nearly static" in v and "the group's 0.020" in v for v in verdicts)
