@@ -65,7 +65,7 @@ SLIDE_STILL = 0.01 * VIDEO_FPS  # m/s: WHAM's "true foot moves < 1 cm per frame"
 FEET_SEEN = 0.9  # a run "keeps the feet in view" when this share of heel and toe points lies inside the image
 
 
-def _similarity(source: np.ndarray, target: np.ndarray, scale: bool = True) -> tuple[float, np.ndarray, np.ndarray]:
+def similarity(source: np.ndarray, target: np.ndarray, scale: bool = True) -> tuple[float, np.ndarray, np.ndarray]:
     """s, R, t minimising |s R x + t - y| over point sets (N x 3), Umeyama."""
     mu_x, mu_y = source.mean(0), target.mean(0)
     x, y = source - mu_x, target - mu_y
@@ -85,7 +85,7 @@ def w_mpjpe(pred: np.ndarray, true: np.ndarray, chunk: int = 100, whole: bool = 
         if len(p) < 2:
             continue
         fit = (p, t) if whole else (p[:2], t[:2])
-        s, r, shift = _similarity(fit[0].reshape(-1, 3), fit[1].reshape(-1, 3))
+        s, r, shift = similarity(fit[0].reshape(-1, 3), fit[1].reshape(-1, 3))
         aligned = s * p @ r.T + shift
         errors.append(np.linalg.norm(aligned - t, axis=-1).mean())
     return 1000 * float(np.mean(errors)) if errors else float("nan")
@@ -93,7 +93,7 @@ def w_mpjpe(pred: np.ndarray, true: np.ndarray, chunk: int = 100, whole: bool = 
 
 def rte_percent(pred_root: np.ndarray, true_root: np.ndarray) -> float:
     """Root translation error: mean distance after one rigid alignment, % of the true path length."""
-    _, r, shift = _similarity(pred_root, true_root, scale=False)
+    _, r, shift = similarity(pred_root, true_root, scale=False)
     length = float(np.linalg.norm(np.diff(true_root, axis=0), axis=-1).sum())
     return 100 * float(np.linalg.norm(pred_root @ r.T + shift - true_root, axis=-1).mean()) / max(length, 1e-6)
 

@@ -14,7 +14,7 @@ dancer on the balls of the feet is not pushed into it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -31,6 +31,21 @@ class CameraEstimate:
     rotation: np.ndarray   # 3 x 3, camera frame -> world frame
     pitch_deg: float       # > 0: the camera looks down
     roll_deg: float        # > 0: the image is turned clockwise (up leans toward image right)
+
+    @property
+    def up(self) -> np.ndarray:
+        """World up in camera coordinates."""
+        return self.rotation[1]
+
+
+@dataclass(frozen=True)
+class WorldFrame:
+    """A world frame that several clips share (a scene): the camera's tilt, the floor (where
+    ``camera.up . X = floor`` in camera coordinates, metres) and the world point that becomes the
+    horizontal origin."""
+    camera: CameraEstimate
+    floor: float
+    origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
 
 def estimate_up(joints_cam: np.ndarray) -> np.ndarray:
@@ -65,6 +80,12 @@ def estimate_camera(joints_cam: np.ndarray, contacts_cam: np.ndarray | None = No
     up = estimate_up(joints_cam)
     if contacts_cam is not None:
         up = up_from_contacts(contacts_cam, up)
+    return camera_from_up(up)
+
+
+def camera_from_up(up: np.ndarray) -> CameraEstimate:
+    """The camera's tilt (no heading) that world up ``up`` (camera coordinates) gives."""
+    up = unit(np.asarray(up, np.float64))
     rotation = smallest_rotation(_FLIP @ up, np.array([[0.0, 1.0, 0.0]]))[0] @ _FLIP
     pitch = float(np.degrees(np.arctan2(-up[2], -up[1])))
     roll = float(np.degrees(np.arctan2(up[0], -up[1])))
@@ -80,12 +101,19 @@ def lowest_point(world: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def to_world(joints_cam: np.ndarray, camera: CameraEstimate | None = None,
-             root: np.ndarray | None = None, planted: np.ndarray | None = None) -> tuple[np.ndarray, CameraEstimate]:
+             root: np.ndarray | None = None, planted: np.ndarray | None = None,
+             frame: WorldFrame | None = None) -> tuple[np.ndarray, CameraEstimate]:
     """Root-relative camera-frame joints (T x 17 x 3, or 21 with the feet), and optionally the root's
     camera-frame path (T x 3), -> world joints with the floor at y = 0 and the root starting above
     the origin. With ``planted`` (T x 4 flags of the heels and toe tips, joints 17-20), the floor
-    is where the planted points are (their median height is y = 0), so planted feet touch it."""
+    is where the planted points are (their median height is y = 0), so planted feet touch it.
+    With a shared ``frame`` (and a root path), its camera, floor and origin are used instead."""
     rel = joints_cam - joints_cam[:, :1]
+    if frame is not None and root is not None:
+        world = (rel + root[:, None]) @ frame.camera.rotation.T
+        world[..., 1] -= frame.floor
+        world[..., [0, 2]] -= frame.origin[[0, 2]]
+        return world, frame.camera
     if camera is None:
         contacts = None
         if planted is not None and root is not None and joints_cam.shape[1] == 21 and planted.any():

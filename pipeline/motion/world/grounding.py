@@ -31,7 +31,7 @@ from pipeline.motion.world.contact import (
     planted_points,
     skating,
 )
-from pipeline.motion.world.gravity import CameraEstimate, to_world
+from pipeline.motion.world.gravity import CameraEstimate, WorldFrame, to_world
 from pipeline.motion.world.rotations import BVH_JOINTS, solve_rotations
 from pipeline.motion.world.trajectory import floor_anchors, refine_root
 
@@ -57,28 +57,41 @@ class GroundedClip:
     root_camera: np.ndarray | None = None      # T x 3 the root path used, camera frame (refined when learned)
 
 
-def root_on_floor(joints_cam: np.ndarray, points: np.ndarray, per_frame: np.ndarray, root: np.ndarray,
-                  anchors: np.ndarray, rays: np.ndarray) -> np.ndarray:
-    """The root path refined again (``refine_root`` from the per-frame path ``per_frame``), now
-    also held where the planted points (``anchors``, T x 4) are seen on the floor: the floor's
-    tilt and height come from the first refined path ``root`` (``to_world``: up from the body and
-    the planted points' plane, the floor at their median height), the points' sight rays
-    (``rays``, T x 4 x 3) meet it. ``points``: heels and toe tips, root-relative, camera frame."""
+def floor_level(points: np.ndarray, root: np.ndarray, anchors: np.ndarray, up: np.ndarray) -> float:
+    """Where the floor is along ``up`` (camera coordinates): the planted points' median height."""
+    return float(np.median(((root[:, None] + points) @ up)[anchors]))
+
+
+def floor_of(joints_cam: np.ndarray, points: np.ndarray, root: np.ndarray,
+             anchors: np.ndarray) -> tuple[np.ndarray, float]:
+    """World up (camera coordinates) and the floor's level along it, from a root path and its
+    planted points (``to_world``: up from the body and the planted points' plane, the floor at
+    their median height). ``points``: heels and toe tips, root-relative, camera frame."""
     body = np.concatenate([joints_cam, joints_cam[:, :1] + points], 1)
     _, camera = to_world(body, root=root, planted=anchors)
-    up = camera.rotation[1]  # world up in camera coordinates
-    level = float(np.median(((root[:, None] + points) @ up)[anchors]))
+    return camera.up, floor_level(points, root, anchors, camera.up)
+
+
+def root_on_floor(joints_cam: np.ndarray, points: np.ndarray, per_frame: np.ndarray, root: np.ndarray,
+                  anchors: np.ndarray, rays: np.ndarray, frame: WorldFrame | None = None) -> np.ndarray:
+    """The root path refined again (``refine_root`` from the per-frame path ``per_frame``), now
+    also held where the planted points (``anchors``, T x 4) are seen on the floor, the points'
+    sight rays (``rays``, T x 4 x 3) meeting it. The floor is the first refined path's
+    (``floor_of``), or a scene's (``frame``)."""
+    up, level = floor_of(joints_cam, points, root, anchors) if frame is None else (frame.camera.up, frame.floor)
     return refine_root(per_frame, points, anchors, floor=floor_anchors(rays, points, anchors, up, level))
 
 
 def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float,
                 feet_cam: np.ndarray | None = None, contact_probability: np.ndarray | None = None, *,
-                feet_rays: np.ndarray | None = None, threshold: float = PLANTED_PROBABILITY,
-                min_frames: int = MIN_PLANTED_FRAMES, hold: float | None = HOLD_PROBABILITY) -> GroundedClip:
+                feet_rays: np.ndarray | None = None, frame: WorldFrame | None = None,
+                threshold: float = PLANTED_PROBABILITY, min_frames: int = MIN_PLANTED_FRAMES,
+                hold: float | None = HOLD_PROBABILITY) -> GroundedClip:
     """Camera-frame root-relative joints (T x 17 x 3), the root path (T x 3 or None), the heels
     and toe tips (T x 4 x 3, like the joints, or None) and their contact probabilities (T x 4 or
     None; a point is planted above ``threshold`` for ``min_frames`` frames in a row, and stays
-    planted while above ``hold``), and the directions they are seen in (T x 4 x 3 or None)."""
+    planted while above ``hold``), and the directions they are seen in (T x 4 x 3 or None). With a
+    scene's ``frame`` (``scene.scene_frame``) the clip is put in that frame, on its floor."""
     joints_cam = joints_cam.astype(np.float64)
     learned = contact_probability is not None and feet_cam is not None and root is not None
     planted = anchors = None
@@ -90,11 +103,11 @@ def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float,
         per_frame, points = root.astype(np.float64), feet_cam.astype(np.float64) - joints_cam[:, :1]
         root = refine_root(per_frame, points, anchors)
         if feet_rays is not None and anchors.any():
-            root = root_on_floor(joints_cam, points, per_frame, root, anchors, feet_rays.astype(np.float64))
+            root = root_on_floor(joints_cam, points, per_frame, root, anchors, feet_rays.astype(np.float64), frame)
     if feet_cam is not None:
         joints_cam = np.concatenate([joints_cam, feet_cam.astype(np.float64)], 1)
     everything, camera = to_world(joints_cam, root=None if root is None else root.astype(np.float64),
-                                  planted=anchors)
+                                  planted=anchors, frame=frame)
     world = everything[:, :17]
     fitted = apply_skeleton(world, fit_skeleton(world))
     feet = None if feet_cam is None else carry_feet(everything[:, 17:], world, fitted)

@@ -1,0 +1,94 @@
+"""Group scenes: every dancer of a segment in one world frame, on one floor."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pipeline.motion.lifting.geometry import look_at, to_camera
+from pipeline.motion.motionfile import MotionClip
+from pipeline.motion.world.contact import capture_contact
+from pipeline.motion.world.grounding import ground_motion
+from pipeline.motion.world.scene import ground_scene
+
+FPS = 24.0
+
+
+def _filmed(world: np.ndarray, feet: np.ndarray, rotation: np.ndarray, position: np.ndarray, clip_id: str,
+            too_far: float = 1.0) -> MotionClip:
+    """A dancer as the lift stage would give them, but exact: camera-frame pose, root path, heels and
+    toes, their contact probabilities and the directions they are seen in; pose and path ``too_far``
+    times as large, as a lifter that made the body that much too large would place it (same image)."""
+    joints, heels_toes = to_camera(world, rotation, position), to_camera(feet, rotation, position)
+    root = joints[:, 0]
+    n = len(world)
+    contact = capture_contact(feet, FPS).astype(np.float32)
+    rays = heels_toes / np.linalg.norm(heels_toes, axis=-1, keepdims=True)
+    return MotionClip(clip_id, int(clip_id[-3]), np.arange(n, dtype=np.int32), np.arange(n) / FPS,
+                      ((joints - root[:, None]) * too_far).astype(np.float32), np.zeros(n, bool), np.zeros(n, np.int8),
+                      (root * too_far).astype(np.float32), ((heels_toes - root[:, None]) * too_far).astype(np.float32),
+                      contact, rays.astype(np.float32))
+
+
+@pytest.fixture(scope="module")
+def duo(mocap_dir: Path) -> tuple[list[MotionClip], np.ndarray, np.ndarray]:
+    """Two dancers 1.6 m apart, the second 1.5 m further back, both dancing a ChoreoNet take, filmed
+    by a phone at 1.2 m pitched 10 degrees down; the second lifted 15 % too large. Returns the
+    clips, the true roots in camera coordinates (2 x T x 3) and world up in camera coordinates."""
+    from pipeline.motion.mocap.sources import load_source, resample
+
+    takes = [resample(seq, FPS) for seq in load_source(mocap_dir, "choreonet_c3d")[:2]]
+    frames = 720  # 30 s: the planted points spread over a metre or two, which the tilt needs
+    offsets = [np.array([-0.8, 0.0, 0.0]), np.array([0.8, 0.0, -1.5])]
+    position = np.array([0.0, 1.2, 5.0])
+    rotation = look_at(position, position + [0.0, -np.tan(np.radians(10.0)), -1.0])
+    clips, roots = [], []
+    for k, (take, off, too_far) in enumerate(zip(takes, offsets, (1.0, 1.15))):
+        shift = take.h36m[:frames, 0].mean(0) * [1, 0, 1] - off
+        body, feet = take.h36m[:frames] - shift, take.feet[:frames] - shift
+        clips.append(_filmed(body, feet, rotation, position, f"vid_000_{k + 1}_0", too_far))
+        roots.append(to_camera(body[:, 0], rotation, position))
+    roots = np.stack(roots)
+    return clips, roots, rotation @ np.array([0.0, 1.0, 0.0])
+
+
+def _group_error(roots: np.ndarray, truth: np.ndarray) -> float:
+    """Mean distance (m) of every dancer's root from the truth after one similarity transform of the
+    whole group: where the dancers are relative to each other, whatever the group's scale."""
+    from pipeline.motion.world.evaluate import similarity
+
+    s, r, t = similarity(roots.reshape(-1, 3), truth.reshape(-1, 3))
+    return float(np.linalg.norm(s * roots @ r.T + t - truth, axis=-1).mean())
+
+
+def test_two_dancers_share_one_floor_and_stand_where_they_are_relative_to_each_other(duo) -> None:
+    clips, truth, up = duo
+    alone = np.stack([ground_motion(c, FPS).root_camera for c in clips])
+    scene = ground_scene(clips, FPS)
+    together = np.stack([g.root_camera for g in scene.clips])
+    # Alone, the dancer lifted too large stands 15 % too far; in the scene the floor puts them back.
+    assert _group_error(alone, truth) > 0.15
+    assert _group_error(together, truth) < 0.1
+    assert scene.scales[1] / scene.scales[0] == pytest.approx(1 / 1.15, rel=0.06)
+    assert np.degrees(np.arccos(np.clip(scene.frame.camera.up @ up, -1, 1))) < 1.0
+    # One world frame: y up, both dancers' planted points on y = 0, the group's centre at the origin.
+    for grounded in scene.clips:
+        assert np.abs(grounded.feet[..., 1][grounded.planted]).max() < 1e-6
+    centre = np.concatenate([g.joints[:, 0] for g in scene.clips]).mean(0)
+    assert abs(centre[0]) < 1e-6 and abs(centre[2]) < 1e-6
+    gap = (scene.clips[1].joints[:, 0] - scene.clips[0].joints[:, 0]).mean(0) / np.mean(scene.scales)
+    assert np.linalg.norm(gap[[0, 2]] - [1.6, -1.5]) < 0.25  # 1.6 m right, 1.5 m further from the camera
+
+
+def test_a_scene_without_any_planted_point_seen_grounds_each_dancer_alone(duo) -> None:
+    from dataclasses import replace
+
+    clips, _, _ = duo
+    blind = [replace(c, feet_rays=None) for c in clips]
+    scene = ground_scene(blind, FPS)
+    assert scene.scales == [1.0, 1.0]
+    for grounded, clip in zip(scene.clips, blind):
+        assert np.allclose(grounded.joints, ground_motion(clip, FPS).joints)
+
