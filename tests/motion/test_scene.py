@@ -92,3 +92,33 @@ def test_a_scene_without_any_planted_point_seen_grounds_each_dancer_alone(duo) -
     for grounded, clip in zip(scene.clips, blind):
         assert np.allclose(grounded.joints, ground_motion(clip, FPS).joints)
 
+
+def test_eval_group_scores_synthetic_groups_and_the_scene_beats_dancers_grounded_alone(mocap_dir: Path, tmp_path: Path,
+                                                                                       capsys) -> None:
+    import json
+
+    from pipeline.cli import main
+    from stages.train_contact import SHIPPED as CONTACT
+    from stages.train_lifter import SHIPPED as LIFTER
+
+    out = tmp_path / "group.json"
+    code = main(["eval", "group", "--mocap", str(mocap_dir), "--model", str(LIFTER), "--contact", str(CONTACT),
+                 "--groups", "1", "--seconds", "8", "--out", str(out)])
+    assert code == 0
+    report = capsys.readouterr().out
+    assert report.splitlines()[0].split()[:4] == ["dancers", "method", "position", "m"]
+    result = json.loads(out.read_text())
+    assert [row["dancers"] for row in result["runs"] if row["method"] == "scene"] == [2, 3, 4, 5, 6]
+    scene, alone = result["scene"]["all"], result["baseline"]["all"]
+    assert scene["position_m"] < alone["position_m"] and scene["floor_deg"] < alone["floor_deg"]
+    assert scene["order_pairs"] > 0 and 0.0 <= scene["order_right"] <= 1.0
+
+
+def test_a_formation_keeps_dancers_apart_but_together() -> None:
+    from pipeline.motion.world.group_eval import MAX_GAP, MIN_GAP, formation
+
+    rng = np.random.default_rng(0)
+    for n in (2, 3, 4, 5, 6):
+        spots = formation(n, rng)
+        gaps = np.linalg.norm(spots[:, None] - spots[None], axis=-1) + np.eye(n) * 1e9
+        assert gaps.min() >= MIN_GAP and (gaps.min(1) <= MAX_GAP).all() and np.allclose(spots.mean(0), 0)

@@ -1,0 +1,257 @@
+"""``dance3d eval group``: synthetic dance groups from motion capture, through the corpus's path.
+
+Protocol:
+
+- a group is 2-6 sequences of different takes (the train_lifter split's held-out ones), each cut to
+  ``seconds`` at ``VIDEO_FPS`` and centred, then placed on one floor in a formation: spots at
+  least ``MIN_GAP`` (0.8 m) apart, each within ``MAX_GAP`` (2 m) of another, in up to three rows,
+  so that some dancers stand behind others (each take's own travel comes on top);
+- each group is filmed by one camera, a landscape phone at 1.2 m or a landscape camera on a 2 m
+  stand (a portrait frame does not hold a line of six), pitched -20 to +20 degrees (> 0 looks
+  down), facing the group, with the nearest dancer 3-4.5 m away and none beyond 8 m;
+- the 2D of each dancer is noisy (a pose model of expected OKS 0.80, 2 % of joints missing, as
+  ``dance3d eval world``), and a joint that falls inside the body of a dancer nearer the camera is
+  hidden: confidence 0, so the lift stage fills it;
+- each dancer then takes the corpus's path (lift with the contact model, HP filter, 24 fps), and
+  the group is grounded in one scene (``scene.ground_scene``); the baseline grounds each dancer
+  alone (``grounding.ground_clip``) and places them by their own camera-frame root path.
+
+Metrics, per run, then medians per group size and over all:
+
+- position (m): every dancer's root at every frame after one similarity transform of the whole
+  group (all dancers at once) onto the truth, camera frame: where the dancers stand relative to
+  each other, whatever the group's scale;
+- order: the share of pairs whose front-to-back order (mean distance from the camera) is right,
+  over the pairs whose true distances differ by at least ``ORDER_GAP`` (0.5 m; closer pairs stand
+  side by side);
+- floor angle (degrees): between the scene's up and the truth (the baseline: the median over its
+  dancers of each one's own).
+
+The truth's up is the capture's y axis; a take whose floor is not level in its own capture (a
+plane through its planted points tilts 0.2-4 degrees on most takes, up to 8 on one CMU take)
+adds that tilt to the floor angle of every method alike.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.motion.lifting.evaluate import add_pose_noise
+from pipeline.motion.lifting.geometry import look_at, project, to_camera
+from pipeline.motion.lifting.infer import LiftModels, lift_clips
+from pipeline.motion.mocap.sources import MocapSequence, first_seconds, resample
+from pipeline.motion.motionfile import MotionClip
+from pipeline.motion.resample import interpolate_linear, resample_clip
+from pipeline.motion.smoothing import smooth_clip
+from pipeline.motion.world.contact import standing_level
+from pipeline.motion.world.evaluate import CORPUS_FPS, VIDEO_FPS, similarity
+from pipeline.motion.world.grounding import ground_motion
+from pipeline.motion.world.scene import ground_scene
+from pipeline.motion.world.trajectory import assumed_focal
+
+SIZES = (2, 3, 4, 5, 6)
+PITCHES = (-20.0, -10.0, 0.0, 10.0, 20.0)
+SETUPS = (("phone", 1.2), ("stand", 2.0))  # landscape, 1920 x 1080, a phone's 26 mm-equivalent lens
+WIDTH, HEIGHT = 1920, 1080
+MIN_GAP, MAX_GAP = 0.8, 2.0
+NEAREST = (3.0, 4.5)   # the nearest dancer's distance from the camera (m)
+FARTHEST = 8.0
+ORDER_GAP = 0.5
+
+
+@dataclass(frozen=True)
+class GroupCamera:
+    setup: str
+    height_m: float
+    pitch_deg: float   # > 0: looks down
+    distance_m: float  # from the nearest spot
+
+    def pose(self, spots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """World-to-camera rotation and position facing the formation (``spots``: N x 2, x and z)
+        along -z, ``distance_m`` in front of its nearest spot."""
+        position = np.array([float(spots[:, 0].mean()), self.height_m, float(spots[:, 1].max()) + self.distance_m])
+        target = position + np.array([0.0, -np.tan(np.radians(self.pitch_deg)), -1.0])
+        return look_at(position, target), position
+
+
+def formation(n: int, rng: np.random.Generator) -> np.ndarray:
+    """``n`` spots (x, z metres, centred) on the floor, at least ``MIN_GAP`` apart and each within
+    ``MAX_GAP`` of another, in one to three rows 1-1.5 m apart (z: toward the camera)."""
+    rows = int(rng.integers(1, min(3, n) + 1))
+    width = 1.3 * np.ceil(n / rows)
+    for _ in range(10000):
+        spots = np.column_stack([rng.uniform(-width / 2, width / 2, n),
+                                 -rng.integers(0, rows, n) * rng.uniform(1.0, 1.5) + rng.normal(0, 0.15, n)])
+        gaps = np.linalg.norm(spots[:, None] - spots[None], axis=-1) + np.eye(n) * 1e9
+        if gaps.min() >= MIN_GAP and (gaps.min(1) <= MAX_GAP).all():
+            return spots - spots.mean(0)
+    raise RuntimeError(f"no formation of {n} dancers found")
+
+
+@dataclass(frozen=True)
+class Placed:
+    body: np.ndarray   # T x 21 x 3 world H36M-17 then heels and toe tips, on the group's floor (y = 0)
+    coco: np.ndarray   # T x 21 x 3 world COCO-17 then heels and toe tips
+
+
+def place(seq: MocapSequence, spot: np.ndarray) -> Placed:
+    """A take centred on ``spot`` (its mean root path there), its standing level on y = 0."""
+    shift = np.array([0.0, standing_level(seq.feet, seq.fps), 0.0])
+    shift[[0, 2]] = seq.h36m[:, 0, [0, 2]].mean(0) - spot
+    return Placed(np.concatenate([seq.h36m, seq.feet], 1) - shift, np.concatenate([seq.coco, seq.feet], 1) - shift)
+
+
+def film(dancers: list[Placed], camera: GroupCamera, spots: np.ndarray,
+         rng: np.random.Generator) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray, np.ndarray]:
+    """Per dancer: noisy 2D (T x 21 x 3: pixels and confidence, 0 where hidden behind a nearer
+    dancer) and the true camera-frame root path (T x 3); and the camera's rotation and position."""
+    rotation, position = camera.pose(spots)
+    focal = assumed_focal(WIDTH, HEIGHT)
+    cams = [to_camera(d.coco, rotation, position) for d in dancers]
+    pixels = [project(c, focal, WIDTH, HEIGHT) for c in cams]
+    depth = np.stack([c[:, :17, 2].mean(1) for c in cams])                  # N x T
+    lo = np.stack([p[:, :17].min(1) for p in pixels])                       # N x T x 2
+    hi = np.stack([p[:, :17].max(1) for p in pixels])
+    inset = (hi - lo) * 0.1  # a body's box less its edges, where limbs leave gaps
+    out = []
+    for i, xy in enumerate(pixels):
+        hidden = np.zeros(xy.shape[:2], bool)
+        for j in range(len(dancers)):
+            nearer = depth[j] < depth[i] - 0.2
+            inside = ((xy >= (lo[j] + inset[j])[:, None]) & (xy <= (hi[j] - inset[j])[:, None])).all(-1)
+            hidden |= inside & nearer[:, None]
+        noisy = add_pose_noise(xy, rng)
+        out.append(np.concatenate([noisy, (~hidden)[..., None].astype(float)], -1))
+    roots = [to_camera(d.body[:, 0], rotation, position) for d in dancers]
+    return out, roots, rotation, position
+
+
+def group_scores(estimate: list[np.ndarray], truth: list[np.ndarray]) -> dict:
+    """Position error (m) after one similarity transform of the group, and the front-to-back order."""
+    est, true = np.stack(estimate), np.stack(truth)
+    s, r, t = similarity(est.reshape(-1, 3), true.reshape(-1, 3))
+    error = float(np.linalg.norm(s * est @ r.T + t - true, axis=-1).mean())
+    far_est, far_true = np.linalg.norm(est, axis=-1).mean(1), np.linalg.norm(true, axis=-1).mean(1)
+    right = total = 0
+    for i in range(len(est)):
+        for j in range(i + 1, len(est)):
+            if abs(far_true[i] - far_true[j]) >= ORDER_GAP:
+                total += 1
+                right += int(np.sign(far_est[i] - far_est[j]) == np.sign(far_true[i] - far_true[j]))
+    return {"position_m": error, "order_right": right, "order_pairs": total}
+
+
+def _angle(up: np.ndarray, true_up: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(np.clip(np.dot(up, true_up) / np.linalg.norm(true_up), -1.0, 1.0))))
+
+
+def run_group(models: LiftModels, takes: list[MocapSequence], camera: GroupCamera, rng: np.random.Generator,
+              lamb: float = 1.0) -> dict[str, dict]:
+    """One group filmed by one camera, through the corpus's path: the scene and the baseline."""
+    frames = min(t.frames for t in takes)
+    spots = formation(len(takes), rng)
+    dancers = [place(first_seconds(t, frames / t.fps), spot) for t, spot in zip(takes, spots)]
+    seen, roots, rotation, _ = film(dancers, camera, spots, rng)
+    lifted = lift_clips(models, [k[:, :17] for k in seen], [k[:, 17:] for k in seen], WIDTH, HEIGHT, VIDEO_FPS,
+                        min_score=0.3, flip=True)
+    clips, truth = [], []
+    for k, (lc, root) in enumerate(zip(lifted, roots)):
+        n = len(lc.joints)
+        clip = MotionClip(f"group_{k}", k, np.arange(n, dtype=np.int32), np.arange(n) / VIDEO_FPS, lc.joints,
+                          np.zeros(n, bool), np.zeros(n, np.int8), lc.root, lc.feet, lc.contact, lc.feet_rays)
+        clip = resample_clip(smooth_clip(clip, lamb), CORPUS_FPS)
+        clips.append(clip)
+        truth.append(interpolate_linear(clip.time, np.arange(n) / VIDEO_FPS, root))
+    true_up = rotation @ np.array([0.0, 1.0, 0.0])
+    scene = ground_scene(clips, CORPUS_FPS)
+    alone = [ground_motion(c, CORPUS_FPS) for c in clips]
+    hidden = float(np.mean([(k[..., 2] == 0).mean() for k in seen]))
+    common = {"dancers": len(takes), "pitch": camera.pitch_deg, "setup": camera.setup, "hidden_share": hidden,
+              "nearest_m": float(min(np.linalg.norm(r, axis=-1).min() for r in roots)),
+              "farthest_m": float(max(np.linalg.norm(r, axis=-1).max() for r in roots))}
+    return {"scene": {**common, **group_scores([g.root_camera for g in scene.clips], truth),
+                      "floor_deg": _angle(scene.frame.camera.up, true_up)},
+            "baseline": {**common, **group_scores([g.root_camera for g in alone], truth),
+                         "floor_deg": float(np.median([_angle(g.camera.up, true_up) for g in alone]))}}
+
+
+def evaluate_groups(models: LiftModels, sequences: list[MocapSequence], *, groups: int = 8, seconds: float = 15.0,
+                    sizes: tuple[int, ...] = SIZES, seed: int = 0, progress=None) -> dict:
+    """``groups`` groups of each size in ``sizes``; medians per size and over all, per method."""
+    rng = np.random.default_rng(seed)
+    takes = [first_seconds(resample(s, VIDEO_FPS), seconds) for s in sequences if s.feet is not None]
+    takes = [t for t in takes if t.frames >= 0.8 * seconds * VIDEO_FPS]
+    if len(takes) < max(sizes):
+        raise ValueError(f"{len(takes)} sequences of at least {0.8 * seconds:g} s with feet; groups of "
+                         f"{max(sizes)} need as many")
+    runs: list[dict] = []
+    for size in sizes:
+        for _ in range(groups):
+            chosen = [takes[i] for i in rng.choice(len(takes), size, replace=False)]
+            setup, height = SETUPS[int(rng.integers(len(SETUPS)))]
+            camera = GroupCamera(setup, height, float(rng.choice(PITCHES)), float(rng.uniform(*NEAREST)))
+            for method, row in run_group(models, chosen, camera, rng).items():
+                runs.append({"method": method, "sequences": [t.name for t in chosen], **row})
+            if progress:
+                progress()
+
+    def summary(rows: list[dict]) -> dict:
+        pairs = sum(r["order_pairs"] for r in rows)
+        return {"runs": len(rows),
+                "position_m": round(float(np.median([r["position_m"] for r in rows])), 3),
+                "order_right": round(sum(r["order_right"] for r in rows) / pairs, 3) if pairs else float("nan"),
+                "order_pairs": pairs,
+                "floor_deg": round(float(np.median([r["floor_deg"] for r in rows])), 2),
+                "hidden_share": round(float(np.mean([r["hidden_share"] for r in rows])), 3)}
+
+    result: dict = {"protocol": {"groups_per_size": groups, "sizes": list(sizes), "seconds_each": seconds,
+                                 "takes": len(takes), "video_fps": VIDEO_FPS, "corpus_fps": CORPUS_FPS}}
+    for method in ("scene", "baseline"):
+        rows = [r for r in runs if r["method"] == method]
+        result[method] = {"all": summary(rows),
+                          **{str(size): summary([r for r in rows if r["dancers"] == size]) for size in sizes}}
+    result["runs"] = runs
+    return result
+
+
+def evaluate_group_folder(lifter, contact, mocap, *, heldout_only: bool = True, groups: int = 8,
+                          seconds: float = 15.0, threads: int = 2, progress=None) -> dict:
+    """``dance3d eval group`` on a folder ``load_folder`` reads (held-out sequences of the known
+    sources; a folder of your own capture is used whole)."""
+    from pathlib import Path
+
+    from pipeline.core.errors import InputError
+    from pipeline.motion.lifting.evaluate import split
+    from pipeline.motion.lifting.infer import load_models
+    from pipeline.motion.mocap.sources import load_folder
+
+    sequences = load_folder(Path(mocap))
+    held = split(sequences)[1] if heldout_only else []
+    sequences = held or sequences
+    for path in (lifter, contact):
+        if path is not None and not Path(path).is_file():
+            raise InputError(path, "no such model")
+    models = load_models(str(lifter), str(contact) if contact else "", threads)
+    try:
+        result = evaluate_groups(models, sequences, groups=groups, seconds=seconds, progress=progress)
+    except ValueError as exc:
+        raise InputError(mocap, str(exc)) from exc
+    result["protocol"].update(lifter=str(lifter), contact_model=str(contact) if contact else "none",
+                              mocap=str(mocap), split="held-out sequences of the train_lifter split" if held
+                              else "every sequence")
+    return result
+
+
+def format_report(result: dict) -> str:
+    """One line per group size and method."""
+    lines = [f"{'dancers':8s} {'method':9s} {'position m':>11s} {'order right':>12s} {'pairs':>6s} "
+             f"{'floor deg':>10s} {'hidden':>7s} {'runs':>5s}"]
+    for size in ["all", *map(str, result["protocol"]["sizes"])]:
+        for method in ("scene", "baseline"):
+            row = result[method][size]
+            lines.append(f"{size:8s} {method:9s} {row['position_m']:11.3f} {row['order_right']:12.3f} "
+                         f"{row['order_pairs']:6d} {row['floor_deg']:10.2f} {row['hidden_share']:7.3f} "
+                         f"{row['runs']:5d}")
+    return "\n".join(lines)
