@@ -517,9 +517,10 @@ def _render(root: Path, args: argparse.Namespace) -> int:
     fps = float(meta.get("fps", 24.0))
     audio = root / AUDIO / f"{meta.get('segment_id', '')}.flac"  # the segment's normalised audio
     if args.world:
-        from pipeline.motion.world.grounding import ground_motion
+        from pipeline.motion.motionfile import read_clips
+        from pipeline.motion.world.scene import ground_in_scene
 
-        grounded = ground_motion(clip, fps)
+        grounded = ground_in_scene(read_clips(args.motion), args.clip_id, fps)
         world = grounded.joints if grounded.feet is None else np.concatenate([grounded.joints, grounded.feet], 1)
         render_clip(world, clip.time, fps, args.out, audio=audio, title=args.clip_id, contact=grounded.contact)
     else:
@@ -534,14 +535,15 @@ def _export_bvh(args: argparse.Namespace) -> int:
 
     from pipeline.core.storage import read_meta
     from pipeline.motion.bvh_export import solve_rotations, write_bvh
-    from pipeline.motion.world.grounding import ground_motion
+    from pipeline.motion.motionfile import read_clips
+    from pipeline.motion.world.scene import ground_in_scene
 
     clip = _clip_of(args.motion, args.clip_id)
     if clip is None:
         return 2
     fps = float(read_meta(args.motion).get("fps", 24.0))
-    # The corpus's grounding: one skeleton, the contact-anchored root, planted feet on the floor.
-    grounded = ground_motion(clip, fps)
+    # The corpus's grounding: in the segment's scene, one skeleton, the contact-anchored root, feet on the floor.
+    grounded = ground_in_scene(read_clips(args.motion), args.clip_id, fps)
     world = grounded.joints if grounded.feet is None else np.concatenate([grounded.joints, grounded.feet], 1)
     motion = solve_rotations(world)  # heels and toe tips become joints of their own
     write_bvh(args.out, motion, fps)

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import onnxruntime as ort
+import pytest
 
 from pipeline.motion.world.contact import capture_contact, pin_planted, planted_points
 from pipeline.motion.world.contact_model import ContactModel, features
@@ -219,6 +220,7 @@ def test_eval_world_scores_the_corpus_path_against_the_path_without_learned_cont
 def test_the_ground_stage_writes_world_files_that_read_back_and_skips_them_when_up_to_date(mocap_dir: Path,
                                                                                           tmp_path: Path) -> None:
     from pipeline.core.paths import MOTION24, WORLD
+    from pipeline.core.storage import read_meta
     from pipeline.motion.lifting.evaluate import PROTOCOL_CAMERAS, view
     from pipeline.motion.mocap.sources import load_source, resample
     from pipeline.motion.motionfile import MotionClip, write_motion
@@ -234,7 +236,7 @@ def test_the_ground_stage_writes_world_files_that_read_back_and_skips_them_when_
     planted = capture_contact(seq.feet[:n], 24.0).astype(np.float32)
     clips = [MotionClip("vid_000_1_0", 1, np.arange(n, dtype=np.int32), np.arange(n) / 24.0, rel[:, :17],
                         np.zeros(n, bool), np.zeros(n, np.int8), cam[:, 0].astype(np.float32), rel[:, 17:],
-                        0.1 + 0.8 * planted),
+                        0.1 + 0.8 * planted, (cam[:, 17:] / np.linalg.norm(cam[:, 17:], axis=-1, keepdims=True))),
              MotionClip("vid_000_2_0", 2, np.arange(n, dtype=np.int32), np.arange(n) / 24.0, rel[:, :17],
                         np.zeros(n, bool), np.zeros(n, np.int8))]  # no root, feet or contact: the older rules
     (tmp_path / MOTION24).mkdir(parents=True)
@@ -247,6 +249,9 @@ def test_the_ground_stage_writes_world_files_that_read_back_and_skips_them_when_
     assert (learned.planted == (planted > 0.5)).mean() > 0.95 and learned.facts["contact_learned"]
     assert np.abs(learned.feet[..., 1][learned.planted]).max() < 1e-6  # planted points on the floor
     assert older.planted is None and older.feet is None and not older.facts["contact_learned"]
+    # Both clips are in the segment's one scene: the learned one set its floor at its own scale.
+    scene = read_meta(tmp_path / WORLD / "vid_000.parquet")["scene"]
+    assert scene["shared_floor"] and scene["clips"] == 2 and learned.facts["scene_scale"] == pytest.approx(1.0)
     stamp = (tmp_path / WORLD / "vid_000.parquet").stat().st_mtime_ns
     run(tmp_path)  # up to date: not rewritten
     assert (tmp_path / WORLD / "vid_000.parquet").stat().st_mtime_ns == stamp

@@ -52,6 +52,7 @@ from pipeline.motion.smoothing import smooth_clip
 from pipeline.motion.world.contact import capture_contact, standing_level
 from pipeline.motion.world.gravity import up_error_deg
 from pipeline.motion.world.grounding import GroundedClip, ground_clip
+from pipeline.motion.world.scene import ground_scene
 from pipeline.motion.world.trajectory import align_scale_offset
 
 VIDEO_FPS = 30.0
@@ -191,7 +192,10 @@ def film_and_ground(models: LiftModels, seq: MocapSequence, camera: Camera, rng:
     for name, probability in (("learned", clip.contact), ("baseline", None)):
         if name == "learned" and probability is None:
             continue
-        grounded = ground_clip(clip.joints, clip.root, CORPUS_FPS, clip.feet, probability, feet_rays=clip.feet_rays)
+        if name == "learned":  # the ground stage's path: a scene of one
+            grounded = ground_scene([clip], CORPUS_FPS).clips[0]
+        else:
+            grounded = ground_clip(clip.joints, clip.root, CORPUS_FPS, clip.feet, probability, feet_rays=clip.feet_rays)
         out[name] = {**scores(grounded, truth, grounded.root_camera, CORPUS_FPS), "feet_in_frame": in_frame}
     return out
 

@@ -148,16 +148,20 @@ class GroundJob:
 
 
 def ground_segment(job: GroundJob) -> dict:
-    """Ground every clip of a segment's 24 fps motion; writes the segment's world file."""
+    """Ground every clip of a segment's 24 fps motion in one scene (``scene.ground_scene``);
+    writes the segment's world file."""
     from pipeline.motion.motionfile import read_motion
+    from pipeline.motion.world.scene import ground_scene
     from pipeline.motion.world.worldfile import world_clip, write_world
 
     motion = read_motion(job.motion24)
-    clips = []
-    for clip in motion.clips:
-        grounded = ground_motion(clip, motion.fps, threshold=job.contact_threshold,
-                                 min_frames=job.min_contact_frames, hold=job.contact_hold)
-        clips.append(world_clip(clip.clip_id, clip.track_id, clip.frame, clip.time, grounded))
+    scene = ground_scene(motion.clips, motion.fps, threshold=job.contact_threshold,
+                         min_frames=job.min_contact_frames, hold=job.contact_hold)
+    clips = [world_clip(clip.clip_id, clip.track_id, clip.frame, clip.time, grounded, scale)
+             for clip, grounded, scale in zip(motion.clips, scene.clips, scene.scales)]
     segment = {k: motion.meta.get(k) for k in ("segment_id", "fps", "source_fps", "width", "height")}
+    segment["scene"] = {"pitch_deg": round(scene.frame.camera.pitch_deg, 2),
+                        "roll_deg": round(scene.frame.camera.roll_deg, 2),
+                        "shared_floor": scene.shared, "clips": len(clips)}
     write_world(job.out, clips, segment, fingerprint=job.fingerprint, params=job.params, inputs=job.inputs)
     return {"clips": len(clips), "learned": sum(c.planted is not None for c in clips)}

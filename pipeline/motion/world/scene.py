@@ -35,6 +35,7 @@ class Scene:
     clips: list[GroundedClip]  # the segment's clips, in order, all in ``frame`` (y up, floor y = 0, group centre at 0)
     frame: WorldFrame
     scales: list[float]        # per clip: the factor that put its path on the scene's floor (1.0: not put on it)
+    shared: bool = True        # False: no planted point was seen, each clip was grounded alone
 
 
 @dataclass(frozen=True)
@@ -104,8 +105,14 @@ def ground_scene(clips: list, fps: float, **rules) -> Scene:
     grounded = [ground_motion(scaled(c, k), fps, frame=frame, **rules) for c, k in zip(clips, scales)]
     if frame is None:
         first = grounded[0].camera if grounded else camera_from_up(np.array([0.0, -1.0, 0.0]))
-        return Scene(grounded, WorldFrame(first, 0.0), scales)
+        return Scene(grounded, WorldFrame(first, 0.0), scales, shared=False)
     centre = np.concatenate([g.joints[:, 0] for g in grounded]).mean(0) * [1.0, 0.0, 1.0]
     moved = [replace(g, joints=g.joints - centre, feet=None if g.feet is None else g.feet - centre)
              for g in grounded]
     return Scene(moved, replace(frame, origin=frame.origin + centre), scales)
+
+
+def ground_in_scene(clips: list, clip_id: str, fps: float, **rules) -> GroundedClip:
+    """One clip as the corpus has it: grounded in the scene of all the clips of its segment."""
+    ids = [c.clip_id for c in clips]
+    return ground_scene(clips, fps, **rules).clips[ids.index(clip_id)]

@@ -1,15 +1,19 @@
 """World motion files (data/world): the ground stage's output, one row per clip frame at the corpus rate.
 
 Columns: clip_id, track_id, frame and time (the motion24 grid: frame k at k / fps s on the segment
-clock), joints (H36M-17 x 3, metres, y up, the floor at y = 0, x/z from the clip's first root
-position; one skeleton per clip, planted feet pinned), feet (left heel, right heel, left toe tip,
-right toe tip x 3, the same frame; NaN without feet), contact (left, right foot on the floor),
-planted (each foot point planted), contact_probability (the contact model's; NaN without one),
-rotations_6d (local joint rotations on the clip's skeleton, ``rotations.BVH_JOINTS`` order).
+clock), joints (H36M-17 x 3, metres, y up, the floor at y = 0, x/z about the centre of the
+segment's scene, which all its clips share: ``scene.ground_scene``; one skeleton per clip,
+planted feet pinned; schema 2, before which x/z were from the clip's first root position),
+feet (left heel, right heel, left toe tip, right toe tip x 3, the same frame; NaN without feet),
+contact (left, right foot on the floor), planted (each foot point planted), contact_probability
+(the contact model's; NaN without one), rotations_6d (local joint rotations on the clip's
+skeleton, ``rotations.BVH_JOINTS`` order).
 
 Per clip, in the file's metadata (``clips``): bone_lengths, camera pitch and roll, the largest
 limb-length CV before the one skeleton and how far it moved the joints, skating before and after
-pinning, the contact share, and whether contact was learned.
+pinning, the contact share, whether contact was learned, and the scale that put the clip on the
+scene's floor (``scene_scale``). Per segment (``scene``): the scene's camera pitch and roll, whether
+its clips share a floor, how many clips.
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ import pyarrow.parquet as pq
 from pipeline.core.storage import column_array, fixed_list, require_schema, write_parquet
 from pipeline.motion.world.grounding import ROTATION_JOINTS, GroundedClip
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 ROTATIONS = len(ROTATION_JOINTS)
 WORLD_SCHEMA = pa.schema([
     ("clip_id", pa.string()),
@@ -56,14 +60,16 @@ class WorldClip:
     facts: dict                       # bone_lengths, pitch_deg, roll_deg, cv_before, fit_moved_mm, ...
 
 
-def world_clip(clip_id: str, track_id: int, frame: np.ndarray, time: np.ndarray, grounded: GroundedClip) -> WorldClip:
+def world_clip(clip_id: str, track_id: int, frame: np.ndarray, time: np.ndarray, grounded: GroundedClip,
+               scene_scale: float = 1.0) -> WorldClip:
     """A grounded clip as the world file stores it."""
     facts = {"bone_lengths": [round(float(x), 6) for x in grounded.bone_lengths],
              "pitch_deg": round(grounded.pitch_deg, 2), "roll_deg": round(grounded.roll_deg, 2),
              "bone_cv_before": round(grounded.cv_before, 5), "fit_moved_mm": round(1000 * grounded.fit_moved, 2),
              "contact_share": round(float(grounded.contact.mean()), 4),
              "contact_learned": grounded.planted is not None,
-             "skate_before_m_s": round(grounded.skate_before, 5), "skate_after_m_s": round(grounded.skate_after, 5)}
+             "skate_before_m_s": round(grounded.skate_before, 5), "skate_after_m_s": round(grounded.skate_after, 5),
+             "scene_scale": round(float(scene_scale), 4)}
     return WorldClip(clip_id, track_id, frame, time, grounded.joints, grounded.feet, grounded.contact,
                      grounded.planted, grounded.contact_probability, grounded.rotations_6d, facts)
 
