@@ -228,6 +228,16 @@ def _parser() -> argparse.ArgumentParser:
     group.add_argument("--groups", type=int, default=8, help="groups of each size, 2 to 6 dancers (default 8)")
     group.add_argument("--seconds", type=float, default=15.0, help="at most this much of each take (default 15)")
     group.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
+    sync = evaluate_sub.add_parser(
+        "sync", help="3D consistency on real video: dancers in sync, same instant against shifted by 1-3 s",
+        description="For every pair of clips of a world file (data/world/<segment>.parquet) that overlap in time: "
+                    "the mean joint distance of their poses at the same instant, after the rotation and scale that "
+                    "align them, against the same with one of them shifted by 1, 1.5, 2, 2.5 and 3 s. For dancers "
+                    "who perform the same choreography in sync, the ratio (same / shifted) is small when their 3D "
+                    "poses are consistent, and falls as the lifter and the grounding improve; near 1, the poses "
+                    "agree no better in sync than out of it (or the dancers do not dance the same steps).")
+    sync.add_argument("world", type=Path, help="a world file, data/world/<segment_id>.parquet")
+    sync.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
     models = sub.add_parser("models", help="model utilities (fetch, convert-videopose3d)")
     models_sub = models.add_subparsers(dest="action", required=True, metavar="ACTION")
     fetch = models_sub.add_parser(
@@ -309,6 +319,11 @@ def _eval(root: Path, args: argparse.Namespace) -> int:
             contact = args.contact or (root / lift["contact_model"] if lift.get("contact_model") else None)
             result = evaluate_group_folder(model, contact, args.mocap, heldout_only=not args.all, groups=args.groups,
                                            seconds=args.seconds)
+        elif args.what == "sync":
+            from pipeline.motion.world.worldfile import format_sync as format_table
+            from pipeline.motion.world.worldfile import sync_pairs
+
+            result = sync_pairs(args.world)
         elif args.what == "segments":
             from pipeline.ingest.propose import evaluate_project, format_table
 

@@ -122,3 +122,30 @@ def test_a_formation_keeps_dancers_apart_but_together() -> None:
         spots = formation(n, rng)
         gaps = np.linalg.norm(spots[:, None] - spots[None], axis=-1) + np.eye(n) * 1e9
         assert gaps.min() >= MIN_GAP and (gaps.min(1) <= MAX_GAP).all() and np.allclose(spots.mean(0), 0)
+
+
+def test_dancers_in_sync_agree_at_the_same_instant_and_not_when_shifted(mocap_dir: Path, tmp_path: Path,
+                                                                         capsys) -> None:
+    from pipeline.cli import main
+    from pipeline.motion.mocap.sources import load_source, resample
+    from pipeline.motion.quality import sync_ratio
+    from pipeline.motion.world.grounding import ground_clip
+    from pipeline.motion.world.worldfile import world_clip, write_world
+
+    dance = resample(load_source(mocap_dir, "choreonet_c3d")[0], FPS).h36m[:240]
+    rel = dance - dance[:, :1]
+    # The same steps by a dancer 10 % smaller, facing elsewhere, with their own small errors.
+    turn = np.array([[np.cos(0.7), 0.0, np.sin(0.7)], [0.0, 1.0, 0.0], [-np.sin(0.7), 0.0, np.cos(0.7)]])
+    other = 0.9 * rel @ turn.T + np.random.default_rng(1).normal(0, 0.01, rel.shape)
+    assert sync_ratio(rel, other, FPS)["ratio"] < 0.3
+    late = np.concatenate([other[24:], other[-24:]])          # one second behind
+    assert sync_ratio(rel, late, FPS)["ratio"] > 0.6
+    # `dance3d eval sync` reads a world file and reports each pair of clips.
+    n = len(rel)
+    clips = [world_clip(f"vid_000_{k}_0", k, np.arange(n, dtype=np.int32), np.arange(n) / FPS,
+                        ground_clip(pose, None, FPS)) for k, pose in ((1, rel), (2, other))]
+    path = tmp_path / "vid_000.parquet"
+    write_world(path, clips, {"segment_id": "vid_000", "fps": FPS}, fingerprint="x", params={}, inputs={})
+    assert main(["eval", "sync", str(path)]) == 0
+    line = capsys.readouterr().out.splitlines()[1].split()
+    assert line[:3] == ["vid_000_1_0", "vid_000_2_0", "10.0"] and float(line[-1]) < 0.3
