@@ -8,7 +8,7 @@ import os
 import sys
 from pathlib import Path
 
-from pipeline.core.errors import Dance3dError
+from pipeline.core.errors import Dance3dError, InputError
 from pipeline.core.paths import FAILURE_DIRS
 from stages import STAGES
 
@@ -97,12 +97,17 @@ def _parser() -> argparse.ArgumentParser:
                             description="Report every problem as file:line: reason. Exit code 1 on errors "
                                         "(warnings alone exit 0).")
     check.add_argument("files", nargs="*", type=Path, help="manifests to check (default: all)")
-    render = sub.add_parser("render", help="draw a 3D motion clip with its audio to an mp4",
+    render = sub.add_parser("render", help="draw a 3D motion clip, or a segment's group scene, to an mp4",
                             description="Draw one clip of a motion file (data/pose3d, data/smooth or data/motion24) "
-                                        "as front and side views, with the segment's audio.")
-    render.add_argument("motion", type=Path, help="a motion Parquet file")
-    render.add_argument("clip_id", help="the clip to draw (see the file's clip_id column)")
+                                        "as front and side views, with the segment's audio; or, with --group, a "
+                                        "segment's scene: its video beside the floor seen from above, with every "
+                                        "dancer where the ground stage put them (data/world) and their paths.",
+                            usage="dance3d render [--world] MOTION CLIP_ID OUT | dance3d render --group SEGMENT OUT")
+    render.add_argument("motion", type=Path, nargs="?", help="a motion Parquet file")
+    render.add_argument("clip_id", nargs="?", help="the clip to draw (see the file's clip_id column)")
     render.add_argument("out", type=Path, help="the mp4 to write")
+    render.add_argument("--group", metavar="SEGMENT", default=None,
+                        help="draw this segment's scene (data/world/SEGMENT.parquet beside its video)")
     render.add_argument("--world", action="store_true",
                         help="draw the clip grounded in the world: y up over a floor grid, its path, feet in contact "
                              "(green), one skeleton, feet pinned (as the corpus's world_joints)")
@@ -525,6 +530,11 @@ def _render(root: Path, args: argparse.Namespace) -> int:
     from pipeline.core.storage import read_meta
     from pipeline.motion.render3d import render_clip
 
+    if args.group:
+        return _render_group(root, args.group, args.out)
+    if args.motion is None or args.clip_id is None:
+        print("dance3d render: give MOTION CLIP_ID OUT, or --group SEGMENT OUT", file=sys.stderr)
+        return 2
     clip = _clip_of(args.motion, args.clip_id)
     if clip is None:
         return 2
@@ -542,6 +552,31 @@ def _render(root: Path, args: argparse.Namespace) -> int:
         joints = clip.joints if clip.feet is None else np.concatenate([clip.joints, clip.feet], 1)
         render_clip(joints, clip.time, fps, args.out, audio=audio, title=args.clip_id)
     print(f"wrote {args.out}")
+    return 0
+
+
+def _render_group(root: Path, segment_id: str, out: Path) -> int:
+    from pipeline.core.paths import AUDIO, RAW, SEGMENTS, WORLD
+    from pipeline.core.storage import read_meta
+    from pipeline.ingest.catalog import read_index
+    from pipeline.ingest.segmentvideo import SegmentVideo
+    from pipeline.motion.render_group import render_group
+    from pipeline.motion.world.worldfile import read_world
+
+    world = root / WORLD / f"{segment_id}.parquet"
+    row = read_index(root / SEGMENTS).get(segment_id)
+    try:
+        if not world.exists():
+            raise InputError(world, "no world file for this segment (run the ground stage first)")
+        if row is None:
+            raise InputError(root / SEGMENTS, f"segment {segment_id} is not in the index")
+        clips = read_world(world)
+        render_group(SegmentVideo.from_index(root / RAW, row), clips, float(read_meta(world)["fps"]), out,
+                     audio=root / AUDIO / f"{segment_id}.flac", title=segment_id)
+    except Dance3dError as exc:
+        print(f"dance3d: {exc}", file=sys.stderr)
+        return 2
+    print(f"wrote {out}: {len(clips)} dancers")
     return 0
 
 

@@ -149,3 +149,48 @@ def test_dancers_in_sync_agree_at_the_same_instant_and_not_when_shifted(mocap_di
     assert main(["eval", "sync", str(path)]) == 0
     line = capsys.readouterr().out.splitlines()[1].split()
     assert line[:3] == ["vid_000_1_0", "vid_000_2_0", "10.0"] and float(line[-1]) < 0.3
+
+
+def _first_frames(grounded, n: int):
+    """A grounded clip's first ``n`` frames."""
+    from dataclasses import replace
+
+    cut = {f: getattr(grounded, f)[:n] for f in ("joints", "contact", "rotations_6d", "feet", "planted",
+                                                  "contact_probability") if getattr(grounded, f) is not None}
+    return replace(grounded, **cut)
+
+
+def test_the_group_render_shows_the_video_beside_every_dancer_on_the_floor(duo, tmp_path: Path, capsys) -> None:
+    import cv2
+
+    from pipeline.cli import main
+    from pipeline.ingest.media import Frame
+    from pipeline.motion.render_group import render_group
+    from pipeline.motion.world.worldfile import world_clip
+
+    clips, _, _ = duo
+    scene = ground_scene(clips, FPS)
+    world = [world_clip(c.clip_id, c.track_id, c.frame[:48], c.time[:48], _first_frames(g, 48))
+             for c, g in zip(clips, scene.clips)]
+
+    class Video:  # a segment's video: 30 fps, the frame turning brighter
+        def iter_frames(self):
+            for k in range(60):
+                yield Frame(k, k / 30.0, np.full((360, 640, 3), 4 * k, np.uint8))
+
+    out = tmp_path / "group.mp4"
+    render_group(Video(), world, FPS, out, title="vid_000")
+    video = cv2.VideoCapture(str(out))
+    frames = int(video.get(cv2.CAP_PROP_FRAME_COUNT))
+    video.set(cv2.CAP_PROP_POS_FRAMES, 47)
+    ok, image = video.read()
+    assert frames == 48 and ok and image.shape[0] == 480
+    # Left: the video frame at 47 / 24 s (the 58th at 30 fps); right: the floor with both dancers' colours.
+    assert abs(float(image[100:300, 100:500].mean()) - 4 * 58) < 6
+    floor = image[:, -480:]
+    assert (np.abs(floor.astype(int) - (80, 200, 255)).sum(-1) < 60).sum() > 50
+    assert (np.abs(floor.astype(int) - (255, 160, 60)).sum(-1) < 60).sum() > 50
+    # Without a world file, one line naming it.
+    assert main(["--root", str(tmp_path), "render", "--group", "vid_000", str(out)]) == 2
+    assert "no world file for this segment" in capsys.readouterr().err
+
