@@ -123,8 +123,11 @@ def _parser() -> argparse.ArgumentParser:
                     "Blender: File > Import > Motion Capture (.bvh), scale 1.",
         epilog="the estimated camera pitch and roll and how far the skeleton fit moved the joints are printed")
     bvh.add_argument("motion", type=Path, help="a motion Parquet file")
-    bvh.add_argument("clip_id", help="the clip to export (see the file's clip_id column)")
-    bvh.add_argument("out", type=Path, help="the .bvh file to write")
+    bvh.add_argument("clip_id", nargs="?", help="the clip to export (see the file's clip_id column)")
+    bvh.add_argument("out", type=Path, help="the .bvh file to write (with --all: a folder)")
+    bvh.add_argument("--all", action="store_true",
+                     help="every clip of the file, one BVH per dancer (<clip_id>.bvh in the folder OUT), all in the "
+                          "segment's one scene: import them together and the dancers stand where they danced")
     sample = sub.add_parser("sample", help="generate dance for a music file with the trained model",
                             description="Continue a seed pose (the first frames of a corpus window) for N frames "
                                         "to the music of an audio file, with models/tsmt.pt, and write a motion "
@@ -581,29 +584,46 @@ def _render_group(root: Path, segment_id: str, out: Path) -> int:
 
 
 def _export_bvh(args: argparse.Namespace) -> int:
-    import numpy as np
-
     from pipeline.core.storage import read_meta
-    from pipeline.motion.bvh_export import solve_rotations, write_bvh
     from pipeline.motion.motionfile import read_clips
-    from pipeline.motion.world.scene import ground_in_scene
+    from pipeline.motion.world.scene import ground_scene
 
-    clip = _clip_of(args.motion, args.clip_id)
-    if clip is None:
+    if args.all == (args.clip_id is not None):
+        print("dance3d export bvh: give MOTION CLIP_ID OUT.bvh, or MOTION --all OUT_FOLDER", file=sys.stderr)
+        return 2
+    if args.clip_id is not None and _clip_of(args.motion, args.clip_id) is None:
         return 2
     fps = float(read_meta(args.motion).get("fps", 24.0))
+    clips = read_clips(args.motion)
     # The corpus's grounding: in the segment's scene, one skeleton, the contact-anchored root, feet on the floor.
-    grounded = ground_in_scene(read_clips(args.motion), args.clip_id, fps)
+    scene = ground_scene(clips, fps)
+    if not args.all:
+        grounded = scene.clips[[c.clip_id for c in clips].index(args.clip_id)]
+        print(f"wrote {args.out}: " + _write_bvh(grounded, fps, args.out))
+        return 0
+    args.out.mkdir(parents=True, exist_ok=True)
+    for clip, grounded, scale in zip(clips, scene.clips, scene.scales):
+        out = args.out / f"{clip.clip_id}.bvh"
+        print(f"wrote {out}: starts at frame {int(clip.frame[0])} ({clip.time[0]:.2f} s; in Blender, move its action "
+              f"there), scale {scale:.3f} onto the scene's floor; " + _write_bvh(grounded, fps, out))
+    return 0
+
+
+def _write_bvh(grounded, fps: float, out: Path) -> str:
+    """Write one grounded clip as BVH; what was written, in words."""
+    import numpy as np
+
+    from pipeline.motion.bvh_export import solve_rotations, write_bvh
+
     world = grounded.joints if grounded.feet is None else np.concatenate([grounded.joints, grounded.feet], 1)
     motion = solve_rotations(world)  # heels and toe tips become joints of their own
-    write_bvh(args.out, motion, fps)
+    write_bvh(out, motion, fps)
     moved = np.linalg.norm(motion.joints - world, axis=-1)
-    print(f"wrote {args.out}: {len(world)} frames, {len(motion.spec)} joints; camera pitch {grounded.pitch_deg:+.1f} "
-          f"deg, roll {grounded.roll_deg:+.1f} deg; bone-length CV {grounded.cv_before:.1%} before the one skeleton, "
-          f"which moved the joints {1000 * grounded.fit_moved:.1f} mm on average; feet on the floor "
-          f"{grounded.contact.mean():.0%} of frames; the BVH's joints are {1000 * moved.mean():.1f} mm from the "
-          f"grounded ones on average ({1000 * moved.max():.1f} mm at most)")
-    return 0
+    return (f"{len(world)} frames, {len(motion.spec)} joints; camera pitch {grounded.pitch_deg:+.1f} "
+            f"deg, roll {grounded.roll_deg:+.1f} deg; bone-length CV {grounded.cv_before:.1%} before the one skeleton, "
+            f"which moved the joints {1000 * grounded.fit_moved:.1f} mm on average; feet on the floor "
+            f"{grounded.contact.mean():.0%} of frames; the BVH's joints are {1000 * moved.mean():.1f} mm from the "
+            f"grounded ones on average ({1000 * moved.max():.1f} mm at most)")
 
 
 def _manifests(root: Path, args: argparse.Namespace) -> int:
