@@ -1,4 +1,5 @@
 """shard stage: data/motion24 + data/audio_features -> data/corpus/{train,val}/shard-NNNNN.parquet,
+data/corpus/groups/{train,val}/ (windows of two or more dancers in one scene),
 data/corpus/README.md (the dataset card with Hugging Face metadata; + durations.png, alignment.png),
 metrics/corpus.json, metrics/durations.csv."""
 
@@ -10,7 +11,14 @@ from pathlib import Path
 
 from pipeline.core.params import corpus_fps, load_params, stage_params
 from pipeline.core.stage import run_stage, setup_logging
-from pipeline.corpus.build import collect_windows, write_card_and_metrics, write_shards
+from pipeline.corpus.build import (
+    collect_group_windows,
+    collect_windows,
+    write_card_and_metrics,
+    write_group_shards,
+    write_shards,
+)
+from pipeline.corpus.groups import link_solo_windows
 
 log = logging.getLogger("dance3d.shard")
 
@@ -22,12 +30,17 @@ def run(root: Path) -> None:
     window = int(round(float(params.get("window_seconds", 20)) * fps))
     hop = int(round(float(params.get("hop_seconds", 10)) * fps))
     windows, counts = collect_windows(root, window, hop, float(params.get("val_fraction", 0.2)), fps)
+    groups = collect_group_windows(root, window, hop, float(params.get("val_fraction", 0.2)), fps)
+    link_solo_windows(windows, groups, window)
+    write_group_shards(root, groups, window, int(params.get("windows_per_shard", 256)),
+                       int(params.get("row_group_windows", 32)), params, fps)
     written = write_shards(root, windows, window, int(params.get("windows_per_shard", 256)),
                            int(params.get("row_group_windows", 32)), params, fps)
     log.info("%d windows: %d train, %d val (%d clips, %d without audio, %d shorter than a window)", len(windows),
              written["train"], written["val"], counts["clips"], counts["clips_without_audio"],
              counts["clips_too_short"])
-    write_card_and_metrics(root, windows, counts, params, window, hop, fps)
+    log.info("%d group windows (two or more dancers in one scene)", len(groups))
+    write_card_and_metrics(root, windows, counts, params, window, hop, fps, groups)
 
 
 def main() -> int:

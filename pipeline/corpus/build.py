@@ -118,6 +118,54 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
     return windows, counts
 
 
+def collect_group_windows(root: Path, window: int, hop: int, val_fraction: float, fps: float = FPS) -> list:
+    """Every segment's group windows (``groups.segment_group_windows``): its world clips in one scene."""
+    from pipeline.corpus.groups import segment_group_windows
+
+    ledger = {r["video_id"]: r for r in read_ledger(root / RAW).values() if r["status"] == "ok"}
+    segments = read_index(root / SEGMENTS)
+    out = []
+    for world_file in item_files(root / WORLD):
+        seg = segments.get(world_file.stem)
+        feature_file = root / AUDIO_FEATURES / f"{world_file.stem}.parquet"
+        if seg is None or not feature_file.exists():
+            continue
+        world_meta = read_meta(world_file)
+        scene = world_meta.get("scene") or {}
+        video = ledger.get(seg["video_id"], {})
+        feats = read_features(feature_file)
+        meta = {"segment_id": world_file.stem, "split": split_of(seg["video_id"], val_fraction),
+                "video_id": seg["video_id"], "url": video.get("url", ""), "licence": video.get("licence", ""),
+                "segment_start": seg["start"], "fps": fps, "tempo": feats.tempo,
+                "camera_pitch": scene.get("pitch_deg", float("nan")),
+                "camera_roll": scene.get("roll_deg", float("nan"))}
+        out.extend(segment_group_windows(read_world(world_file), feats, window, hop, meta))
+    return out
+
+
+def write_group_shards(root: Path, groups: list, window: int, per_shard: int, row_group: int, params: dict,
+                       fps: float = FPS) -> dict[str, int]:
+    """``data/corpus/groups/{train,val}/shard-NNNNN.parquet`` (the ``groups`` config of the card)."""
+    from pipeline.corpus.groups import GROUP_SCHEMA_VERSION, group_table
+    from pipeline.corpus.windows import CHROMA_DIMS, MFCC_DIMS
+
+    written = {}
+    for split in ("train", "val"):
+        folder = root / CORPUS / "groups" / split
+        shutil.rmtree(folder, ignore_errors=True)
+        rows = [g for g in groups if g.meta["split"] == split]
+        if rows:
+            folder.mkdir(parents=True)
+        for n, start in enumerate(range(0, len(rows), per_shard)):
+            write_parquet(group_table(rows[start: start + per_shard], window, MFCC_DIMS, CHROMA_DIMS),
+                          folder / f"shard-{n:05d}.parquet", schema_version=GROUP_SCHEMA_VERSION, params=params,
+                          extra={"fps": fps, "window_frames": window, "joints": "h36m17", "units": "metres",
+                                 "frame": "the segment's scene: y up, floor y = 0, x/z about the group's centre"},
+                          row_group_size=row_group)
+        written[split] = len(rows)
+    return written
+
+
 def grounding_summary(clips: list[dict]) -> dict:
     """Medians over the clips of the world grounding: camera tilt, bone-length CV before the one
     skeleton (0 after), contact share and foot skating before and after pinning."""
@@ -177,7 +225,7 @@ def write_shards(root: Path, windows: list[Window], window: int, per_shard: int,
 
 
 def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, params: dict, window: int,
-                           hop: int, fps: float = FPS) -> None:
+                           hop: int, fps: float = FPS, groups: list | None = None) -> None:
     ledger = list(read_ledger(root / RAW).values())
     index = read_index(root / SEGMENTS)
     segments = list(index.values())
@@ -222,8 +270,11 @@ def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, para
         splits = [s for s, n in (("train", totals["windows_train"]), ("val", totals["windows_val"])) if n]
         contact_file = root / METRICS / "contact.json"
         contact = json.loads(contact_file.read_text()) if contact_file.exists() else None
-        tmp.write_text(hf_front_matter(splits) + render_card(stats, ledger, card_params, totals, alignment,
-                                                           style_stats(metas), contact))
+        group_counts = {s: sum(g.meta["split"] == s for g in groups or []) for s in ("train", "val")}
+        group_counts["dancers"] = len({c for g in groups or [] for c in g.meta["clip_ids"]})
+        tmp.write_text(hf_front_matter(splits, [s for s in ("train", "val") if group_counts[s]])
+                       + render_card(stats, ledger, card_params, totals, alignment, style_stats(metas), contact,
+                                     group_counts if groups else None))
     (root / CORPUS / "card.md").unlink(missing_ok=True)  # the card's name before schema 4
     durations_csv(root / METRICS / "durations.csv", {"videos": series["source videos"],
                                                      "segments": series["trimmed segments"], "clips": clip_seconds})
@@ -236,5 +287,9 @@ def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, para
                "clips_without_audio": counts["clips_without_audio"],
                "clips_without_world": counts.get("clips_without_world", 0),
                "clips_too_short": counts["clips_too_short"],
-               "beat_alignment": alignment, "grounding": grounding_summary(counts.get("grounding", []))}
+               "beat_alignment": alignment, "grounding": grounding_summary(counts.get("grounding", [])),
+               "group_windows": {"train": sum(g.meta["split"] == "train" for g in groups or []),
+                                 "val": sum(g.meta["split"] == "val" for g in groups or []),
+                                 "dancers_median": float(np.median([g.meta["dancers"] for g in groups]))
+                                 if groups else 0.0}}
     write_json(root / METRICS / "corpus.json", metrics)

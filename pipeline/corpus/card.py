@@ -138,14 +138,47 @@ def style_stats(metas: list[dict]) -> list[dict]:
             for style, r in sorted(counts.items(), key=lambda kv: (-(kv[1]["train"] + kv[1]["val"]), kv[0]))]
 
 
-def hf_front_matter(splits: list[str]) -> str:
+def hf_front_matter(splits: list[str], group_splits: list[str] | None = None) -> str:
     """Hugging Face dataset-card metadata: `datasets.load_dataset(<corpus folder>)` finds the
-    splits that have shards (val is named `validation`, as the Hub names it)."""
-    files = "".join(f"  - split: {'validation' if s == 'val' else s}\n    path: {s}/*.parquet\n" for s in splits)
+    splits that have shards (val is named `validation`, as the Hub names it); with group windows,
+    a second config, `groups` (`load_dataset(<corpus folder>, "groups")`)."""
+    def files(folder: str, names: list[str]) -> str:
+        return "".join(f"  - split: {'validation' if s == 'val' else s}\n    path: {folder}{s}/*.parquet\n"
+                       for s in names)
+
+    groups = f"- config_name: groups\n  data_files:\n{files('groups/', group_splits)}" if group_splits else ""
     return ("---\npretty_name: dance3d corpus\nlicense: other\nlicense_name: per-source\n"
             "license_details: every window inherits the licence of its source video (columns licence, url)\n"
             "tags:\n- dance\n- motion-capture\n- 3d-human-pose\n- music\n"
-            f"configs:\n- config_name: default\n  data_files:\n{files}---\n\n")
+            f"configs:\n- config_name: default\n  data_files:\n{files('', splits)}{groups}---\n\n")
+
+
+def _groups_text(groups: dict | None, window: float, hop: float, fps: float) -> str:
+    """The group windows: what they hold, and how many there are."""
+    frames = round(window * fps)
+    count = (f"{groups['train']} training and {groups['val']} validation group windows, "
+             f"{groups['dancers']} dancers in all." if groups else "None in this corpus (no segment has two dancers "
+             "in one window).")
+    return f"""## Group windows (config `groups`)
+
+`groups/train/shard-NNNNN.parquet` and `groups/val/...`: one row per {window:g} s window of a
+segment with two or more dancers, every {hop:g} s on the segment clock (frames 0, {round(hop * fps)}, ...),
+holding every dancer whose clip covers the whole window, in track-id order. {count}
+`datasets.load_dataset(<corpus folder>, "groups")` loads them.
+
+| column | type | meaning |
+|---|---|---|
+| window_id | string | `<segment_id>_g<start_frame>` |
+| split, video_id, url, licence, segment_id, start_frame, start_time, segment_start | | as in the solo windows |
+| dancers | int32 | how many dancers the window holds (D) |
+| clip_ids, track_ids | list of string, list of int32 | each dancer's clip and track (link to the solo windows) |
+| world_joints | D x {frames} x 17 x 3 float32 | each dancer in the segment's scene: y up, one floor at y = 0, x/z in metres about the group's centre over the window (positions relative to each other kept) |
+| root | D x {frames} x 3 float32 | each dancer's pelvis: where they stand and travel, in formation |
+| world_feet | D x {frames} x 4 x 3 float32 | heels and toe tips, the same frame (NaN without feet) |
+| contact, planted | D x {frames} x 2 / 4 int8 | as in the solo windows, per dancer |
+| camera_pitch, camera_roll | float32 | the scene's camera tilt (degrees), from all its dancers |
+| mfcc, chroma, onset, beat, tempo | | the window's music, as in the solo windows |
+"""
 
 
 def _contact_text(contact: dict | None) -> str:
@@ -171,7 +204,8 @@ def _contact_text(contact: dict | None) -> str:
 
 
 def render_card(stats: list[dict], ledger: list[dict], params: dict, totals: dict,
-                alignment: dict | None = None, styles: list[dict] | None = None, contact: dict | None = None) -> str:
+                alignment: dict | None = None, styles: list[dict] | None = None, contact: dict | None = None,
+                groups: dict | None = None) -> str:
     window, hop = params["window_seconds"], params["hop_seconds"]
     fps = params.get("fps", 24)
     header = ("| channel | videos | minutes | trimmed segments | trimmed minutes | track ids / video | "
@@ -204,6 +238,7 @@ PyTorch loader is `pipeline.train.dataset.WindowDataset`. Each file's key-value 
 | video_id, url, title, channel, style, licence | string | provenance of the source video (style: the sources.csv label) |
 | tags | list of string | the site's tags for the video (from its listing or download) |
 | segment_id, clip_id, track_id | string, string, int32 | the trimmed segment, the cleaned clip (one dancer), its track |
+| group_window_id | string | the group window (config `groups`) that holds this dancer with the others of the segment and overlaps this window most; empty when none |
 | start_frame, start_time | int32, float64 | first frame k of the window and k/{fps:g} s, on the segment clock |
 | segment_start | float64 | where the segment starts in the source video (s) |
 | motion | {round(window * fps)} x 17 x 3 float32 | Human3.6M-17 joints, metres, root-relative, camera frame (x right, y down, z away) |
@@ -239,7 +274,10 @@ resampled with a cubic spline. Audio was loudness-normalised to EBU R128 before 
 
 ## World motion
 
-{_contact_text(contact)}
+{_contact_text(contact)} All dancers of a segment are grounded in one scene: one gravity, one
+floor, each dancer scaled onto it and placed where their planted feet are seen.
+
+{_groups_text(groups, window, hop, fps)}
 
 ## Motion–music alignment
 

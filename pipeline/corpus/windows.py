@@ -18,13 +18,14 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 
-SCHEMA_VERSION = 6  # 2: beat, downbeat and motion-beat frames, alignment scores; any frame rate. 3: tags.
+SCHEMA_VERSION = 7  # 2: beat, downbeat and motion-beat frames, alignment scores; any frame rate. 3: tags.
 #                    4: world-frame joints, root path, foot contact, bone lengths, 6D rotations, camera pitch/roll
 #                    5: feet, world_feet. 6: contact from the learned contact model, planted, contact_probability
+#                    7: group_window_id (the group window, corpus/groups.py, that holds this one's dancer)
 FPS = 24  # the default corpus rate
 MFCC_DIMS = 39
 # A window built without beat analysis (tests, benchmarks) has no beats: empty lists, NaN scores.
-WORLD_DEFAULTS = {"camera_pitch": float("nan"), "camera_roll": float("nan")}
+WORLD_DEFAULTS = {"camera_pitch": float("nan"), "camera_roll": float("nan"), "group_window_id": ""}
 BEAT_DEFAULTS = {"beat_frames": [], "downbeat_frames": [], "motion_beat_frames": [], "beat_align_score": float("nan"),
                  "beat_f1": float("nan")}
 CHROMA_DIMS = 12
@@ -52,6 +53,7 @@ def corpus_schema(window: int) -> pa.Schema:
         ("video_id", pa.string()), ("url", pa.string()), ("title", pa.string()), ("channel", pa.string()),
         ("style", pa.string()), ("tags", pa.list_(pa.string())), ("licence", pa.string()),
         ("segment_id", pa.string()), ("clip_id", pa.string()), ("track_id", pa.int32()),
+        ("group_window_id", pa.string()),  # the group window holding this dancer's frames ('' when none)
         ("start_frame", pa.int32()), ("start_time", pa.float64()), ("segment_start", pa.float64()),
         ("motion", fixed(fixed(fixed(pa.float32(), 3), 17), window)),
         ("world_joints", fixed(fixed(fixed(pa.float32(), 3), 17), window)),  # y up, floor 0, x/z from window start
