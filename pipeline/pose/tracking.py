@@ -34,6 +34,8 @@ class TrackerOptions:
     max_age: int = 24            # frames a lost track waits to be re-associated
     kp_min_score: float = 0.2    # keypoints below this confidence are ignored by OKS
     velocity_smoothing: float = 0.6  # weight of the newest velocity estimate
+    stitch_gap: int = 12         # a track starting this close to another's end, where that one stood, continues it
+    stitch_iou: float = 0.5      # ... when its first boxes overlap the other's last sure ones this much
 
 
 def iou_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -145,6 +147,43 @@ def assign_tracks(frames: np.ndarray, boxes: np.ndarray, keypoints: np.ndarray,
                     next_id += 1
                     ids[track.detections] = track.track_id
                 live.append(track)
+    return stitch_tracks(frames, boxes, ids, opts.stitch_gap, opts.stitch_iou)
+
+
+def _median_box(boxes: np.ndarray) -> np.ndarray:
+    return np.median(boxes, axis=0)[None]
+
+
+def stitch_tracks(frames: np.ndarray, boxes: np.ndarray, ids: np.ndarray, max_gap: int = 12, min_iou: float = 0.5,
+                  tail: int = 3) -> np.ndarray:
+    """Ids with broken tracks joined: a track B that starts within ``max_gap`` frames of a track
+    A's end (A ending at most ``tail`` frames after B starts), whose first boxes overlap A's last
+    sure ones (before B began and before A's last ``tail`` frames) by ``min_iou``, is A. A's
+    detections from B's start on are dropped: they are what broke it (a box that swallowed two
+    dancers, or another person's). Seen in the shared duet: for two frames the woman's box grew
+    over her partner, her track followed it and was lost, and she came back under a new id."""
+    ids = ids.copy()
+    real = ids >= 0
+    spans = {int(t): [int(frames[ids == t].min()), int(frames[ids == t].max())] for t in np.unique(ids[real])}
+    for b in sorted(spans, key=lambda t: spans[t][0]):
+        if b not in spans:
+            continue
+        b_start = spans[b][0]
+        b_rows = np.flatnonzero(ids == b)[:5]
+        best, best_iou = None, min_iou
+        for a, (a_start, a_end) in spans.items():
+            if a == b or a_start >= b_start or not b_start - max_gap <= a_end <= b_start + tail:
+                continue
+            sure = np.flatnonzero((ids == a) & (frames < min(b_start, a_end - tail + 1)))[-5:]
+            if not len(sure):
+                continue
+            overlap = float(iou_matrix(_median_box(boxes[sure]), _median_box(boxes[b_rows]))[0, 0])
+            if overlap >= best_iou:
+                best, best_iou = a, overlap
+        if best is not None:
+            ids[(ids == best) & (frames >= b_start)] = UNTRACKED
+            ids[ids == b] = best
+            spans[best][1] = spans.pop(b)[1]
     return ids
 
 
