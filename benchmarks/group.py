@@ -10,11 +10,10 @@ alone) is pipeline/motion/world/group_eval.py's; this runs it with the shipped l
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import time
 from pathlib import Path
 
+from benchmarks.world import run_and_save
 from pipeline.motion.world.group_eval import evaluate_group_folder, format_report
 from stages.train_contact import SHIPPED as CONTACT
 from stages.train_lifter import SHIPPED as LIFTER
@@ -27,12 +26,8 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=15.0, help="at most this much of each take")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/group.json"))
     args = parser.parse_args()
-    started = time.monotonic()
-    result = evaluate_group_folder(LIFTER, CONTACT, args.mocap, groups=args.groups, seconds=args.seconds)
-    result["protocol"]["wall_seconds"] = round(time.monotonic() - started, 1)
-    print(format_report(result))
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=1) + "\n")
+    run_and_save(lambda: evaluate_group_folder(LIFTER, CONTACT, args.mocap, groups=args.groups, seconds=args.seconds),
+                 format_report, args.out)
 
 
 if __name__ == "__main__":

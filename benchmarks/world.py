@@ -13,6 +13,7 @@ import argparse
 import json
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from pipeline.motion.world.evaluate import evaluate_folder, format_report
@@ -26,12 +27,18 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=20.0, help="at most this much of each sequence")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/world.json"))
     args = parser.parse_args()
+    run_and_save(lambda: evaluate_folder(LIFTER, CONTACT, args.mocap, seconds=args.seconds), format_report, args.out)
+
+
+def run_and_save(evaluate: Callable[[], dict], report: Callable[[dict], str], out: Path) -> dict:
+    """Run an evaluation, time it (``protocol.wall_seconds``), print its report, save it as JSON."""
     started = time.monotonic()
-    result = evaluate_folder(LIFTER, CONTACT, args.mocap, seconds=args.seconds)
+    result = evaluate()
     result["protocol"]["wall_seconds"] = round(time.monotonic() - started, 1)
-    print(format_report(result))
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(result, indent=1) + "\n")
+    print(report(result))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(result, indent=1) + "\n")
+    return result
 
 
 if __name__ == "__main__":

@@ -209,13 +209,7 @@ def _parser() -> argparse.ArgumentParser:
                     "contact model. Protocol: pipeline/motion/world/evaluate.py.",
         epilog="motion capture: as for `eval lifter` (held-out sequences of the known sources unless --all); "
                "sequences need heels and toe tips ('feet' in a joint-position .npz).")
-    world.add_argument("--mocap", type=Path, required=True, help="the motion-capture folder")
-    world.add_argument("--model", type=Path, default=None, help="the lifter ONNX (default: params.yaml lift.model)")
-    world.add_argument("--contact", type=Path, default=None,
-                       help="the contact model ONNX (default: params.yaml lift.contact_model)")
-    world.add_argument("--all", action="store_true", help="score every sequence, also those the models trained on")
-    world.add_argument("--seconds", type=float, default=20.0, help="at most this much of each sequence (default 20)")
-    world.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
+    _capture_eval_options(world, seconds=20.0)
     group = evaluate_sub.add_parser(
         "group", help="groups of dancers in one scene, on synthetic groups of motion capture (position, order, floor)",
         description="Make dance groups of 2-6 held-out motion-capture takes placed on one floor (spots 0.8-2 m "
@@ -228,14 +222,8 @@ def _parser() -> argparse.ArgumentParser:
                     "each dancer grounded alone and placed by their own root path. Protocol: "
                     "pipeline/motion/world/group_eval.py.",
         epilog="motion capture: as for `eval world` (held-out sequences of the known sources unless --all).")
-    group.add_argument("--mocap", type=Path, required=True, help="the motion-capture folder")
-    group.add_argument("--model", type=Path, default=None, help="the lifter ONNX (default: params.yaml lift.model)")
-    group.add_argument("--contact", type=Path, default=None,
-                       help="the contact model ONNX (default: params.yaml lift.contact_model)")
-    group.add_argument("--all", action="store_true", help="use every sequence, also those the models trained on")
+    _capture_eval_options(group, seconds=15.0)
     group.add_argument("--groups", type=int, default=8, help="groups of each size, 2 to 6 dancers (default 8)")
-    group.add_argument("--seconds", type=float, default=15.0, help="at most this much of each take (default 15)")
-    group.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
     sync = evaluate_sub.add_parser(
         "sync", help="3D consistency on real video: dancers in sync, same instant against shifted by 1-3 s",
         description="For every pair of clips of a world file (data/world/<segment>.parquet) that overlap in time: "
@@ -309,22 +297,16 @@ def _eval(root: Path, args: argparse.Namespace) -> int:
             result = evaluate_onnx(model, args.mocap, heldout_only=not args.all, flip=not args.no_flip,
                                    max_seconds=args.seconds)
         elif args.what == "world":
-            from pipeline.core.params import load_params, stage_params
             from pipeline.motion.world.evaluate import evaluate_folder
             from pipeline.motion.world.evaluate import format_report as format_table
 
-            lift = stage_params(load_params(root / "params.yaml"), "lift")
-            model = args.model or root / lift.get("model", "models/lifter.onnx")
-            contact = args.contact or (root / lift["contact_model"] if lift.get("contact_model") else None)
+            model, contact = _lift_models(root, args)
             result = evaluate_folder(model, contact, args.mocap, heldout_only=not args.all, seconds=args.seconds)
         elif args.what == "group":
-            from pipeline.core.params import load_params, stage_params
             from pipeline.motion.world.group_eval import evaluate_group_folder
             from pipeline.motion.world.group_eval import format_report as format_table
 
-            lift = stage_params(load_params(root / "params.yaml"), "lift")
-            model = args.model or root / lift.get("model", "models/lifter.onnx")
-            contact = args.contact or (root / lift["contact_model"] if lift.get("contact_model") else None)
+            model, contact = _lift_models(root, args)
             result = evaluate_group_folder(model, contact, args.mocap, heldout_only=not args.all, groups=args.groups,
                                            seconds=args.seconds)
         elif args.what == "sync":
@@ -347,6 +329,27 @@ def _eval(root: Path, args: argparse.Namespace) -> int:
     if args.out:
         args.out.write_text(json.dumps(result, indent=2) + "\n")
     return 0
+
+
+def _capture_eval_options(parser: argparse.ArgumentParser, seconds: float) -> None:
+    """The options every evaluation on motion capture through the corpus's path takes."""
+    parser.add_argument("--mocap", type=Path, required=True, help="the motion-capture folder")
+    parser.add_argument("--model", type=Path, default=None, help="the lifter ONNX (default: params.yaml lift.model)")
+    parser.add_argument("--contact", type=Path, default=None,
+                        help="the contact model ONNX (default: params.yaml lift.contact_model)")
+    parser.add_argument("--all", action="store_true", help="use every sequence, also those the models trained on")
+    parser.add_argument("--seconds", type=float, default=seconds,
+                        help=f"at most this much of each sequence (default {seconds:g})")
+    parser.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
+
+
+def _lift_models(root: Path, args: argparse.Namespace) -> tuple[Path, Path | None]:
+    """The lifter and contact model: the options', else params.yaml lift's."""
+    from pipeline.core.params import load_params, stage_params
+
+    lift = stage_params(load_params(root / "params.yaml"), "lift")
+    model = args.model or root / lift.get("model", "models/lifter.onnx")
+    return model, args.contact or (root / lift["contact_model"] if lift.get("contact_model") else None)
 
 
 def _fetch_models(root: Path, args: argparse.Namespace) -> int:

@@ -5,6 +5,7 @@ root's trail and the feet in contact marked, so travel and foot sliding show at 
 from __future__ import annotations
 
 import subprocess
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 import cv2
@@ -101,33 +102,44 @@ def draw_world(joints: np.ndarray, contact: np.ndarray, trail: np.ndarray, centr
     return canvas
 
 
-def render_clip(joints: np.ndarray, times: np.ndarray, fps: float, out: Path, *, audio: Path | None = None,
-                title: str = "", contact: np.ndarray | None = None) -> None:
-    """Write ``out`` (H.264 mp4); ``audio`` (the segment's wav) is cut to the clip's times.
-    ``joints``: T x 17 x 3, or 21 with the heels and toes. With ``contact`` (T x 2), ``joints``
-    are world motion and are drawn with ``draw_world``."""
-    size = 480
+def encode_mp4(frames: Iterable[np.ndarray], out: Path, width: int, height: int, fps: float, *,
+               audio: Path | None = None, audio_start: float = 0.0, what: str = "the 3D render") -> None:
+    """Write BGR frames (``height`` x ``width`` each) to ``out`` as H.264 mp4 at ``fps``, with
+    ``audio`` from ``audio_start`` s when it exists (cut to the video's length)."""
     with atomic_path(out) as tmp:
         cmd = [ffmpeg_exe(), "-hide_banner", "-nostdin", "-loglevel", "error", "-y", "-f", "rawvideo",
-               "-pix_fmt", "bgr24", "-s", f"{2 * size}x{size}", "-r", f"{fps:.6f}", "-i", "pipe:0"]
+               "-pix_fmt", "bgr24", "-s", f"{width}x{height}", "-r", f"{fps:.6f}", "-i", "pipe:0"]
         if audio is not None and Path(audio).exists():
-            cmd += ["-ss", f"{float(times[0]):.6f}", "-i", str(audio), "-map", "0:v", "-map", "1:a", "-c:a", "aac",
+            cmd += ["-ss", f"{audio_start:.6f}", "-i", str(audio), "-map", "0:v", "-map", "1:a", "-c:a", "aac",
                     "-shortest"]
         cmd += ["-c:v", "libx264", "-preset", "veryfast", "-crf", "23", "-pix_fmt", "yuv420p",
                 "-movflags", "+faststart", "-f", "mp4", str(tmp)]
         proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stderr=subprocess.PIPE)
         try:
-            centre = joints[:, 0].mean(0)
-            for k, (pose, t) in enumerate(zip(joints, times)):
-                frame = draw_pose(pose, size) if contact is None else draw_world(
-                    pose, contact[k], joints[max(0, k - int(4 * fps)): k + 1, 0], centre, size)
-                label = f"{title}  {format_time(float(t))}"
-                cv2.putText(frame, label, (10, size - 12), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255), 1,
-                            cv2.LINE_AA)
+            for frame in frames:
                 proc.stdin.write(frame.tobytes())
             proc.stdin.close()
         except BrokenPipeError:
             pass
         err = proc.stderr.read().decode(errors="replace")
         if proc.wait() != 0:
-            raise MediaError(out, f"ffmpeg could not encode the 3D render: {err.strip()[-300:]}")
+            raise MediaError(out, f"ffmpeg could not encode {what}: {err.strip()[-300:]}")
+
+
+def render_clip(joints: np.ndarray, times: np.ndarray, fps: float, out: Path, *, audio: Path | None = None,
+                title: str = "", contact: np.ndarray | None = None) -> None:
+    """Write ``out`` (H.264 mp4); ``audio`` (the segment's wav) is cut to the clip's times.
+    ``joints``: T x 17 x 3, or 21 with the heels and toes. With ``contact`` (T x 2), ``joints``
+    are world motion and are drawn with ``draw_world``."""
+    size = 480
+    centre = joints[:, 0].mean(0)
+
+    def frames() -> Iterator[np.ndarray]:
+        for k, (pose, t) in enumerate(zip(joints, times)):
+            frame = draw_pose(pose, size) if contact is None else draw_world(
+                pose, contact[k], joints[max(0, k - int(4 * fps)): k + 1, 0], centre, size)
+            cv2.putText(frame, f"{title}  {format_time(float(t))}", (10, size - 12), cv2.FONT_HERSHEY_SIMPLEX, 0.6,
+                        (255, 255, 255), 1, cv2.LINE_AA)
+            yield frame
+
+    encode_mp4(frames(), out, 2 * size, size, fps, audio=audio, audio_start=float(times[0]))

@@ -7,17 +7,15 @@ A look at what the group windows hold: whether the dancers stand where the video
 
 from __future__ import annotations
 
-import subprocess
+from collections.abc import Iterator
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from pipeline.core.errors import MediaError
-from pipeline.core.storage import atomic_path
 from pipeline.core.timecode import format_time
-from pipeline.ingest.media import ffmpeg_exe
 from pipeline.motion.mocap.skeleton import FOOT_BONES, H36M_BONES
+from pipeline.motion.render3d import encode_mp4
 
 PANEL = 480
 TRAIL_SECONDS = 4.0
@@ -86,31 +84,19 @@ def render_group(video, clips: list, fps: float, out: Path, *, audio: Path | Non
     first = None if current is None else _fit(current.image, PANEL)
     width = (first.shape[1] if first is not None else PANEL) + PANEL
     width += width % 2
-    with atomic_path(out) as tmp:
-        cmd = [ffmpeg_exe(), "-hide_banner", "-nostdin", "-loglevel", "error", "-y", "-f", "rawvideo",
-               "-pix_fmt", "bgr24", "-s", f"{width}x{PANEL}", "-r", f"{fps:.6f}", "-i", "pipe:0"]
-        if audio is not None and Path(audio).exists():
-            cmd += ["-i", str(audio), "-map", "0:v", "-map", "1:a", "-c:a", "aac", "-shortest"]
-        cmd += ["-c:v", "libx264", "-preset", "veryfast", "-crf", "23", "-pix_fmt", "yuv420p",
-                "-movflags", "+faststart", "-f", "mp4", str(tmp)]
-        proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stderr=subprocess.PIPE)
-        try:
-            for k in range(last + 1):
-                t = k / fps
-                while upcoming is not None and upcoming.time <= t + 1e-6:  # the last video frame at or before t
-                    current, upcoming = upcoming, next(frames, None)
-                picture = np.zeros((PANEL, width - PANEL, 3), np.uint8)
-                if current is not None:
-                    image = _fit(current.image, PANEL)
-                    picture[:, : image.shape[1]] = image[:, : width - PANEL]
-                canvas = np.concatenate([picture, draw_floor(clips, k, fps, centre, half)], axis=1)
-                cv2.putText(canvas, f"{title}  {format_time(t)}", (10, PANEL - 12), cv2.FONT_HERSHEY_SIMPLEX, 0.6,
-                            (255, 255, 255), 1, cv2.LINE_AA)
-                proc.stdin.write(canvas.tobytes())
-            proc.stdin.close()
-        except BrokenPipeError:
-            pass
-        err = proc.stderr.read().decode(errors="replace")
-        if proc.wait() != 0:
-            raise MediaError(out, f"ffmpeg could not encode the group render: {err.strip()[-300:]}")
+    def canvases() -> Iterator[np.ndarray]:
+        nonlocal current, upcoming
+        for k in range(last + 1):
+            t = k / fps
+            while upcoming is not None and upcoming.time <= t + 1e-6:  # the last video frame at or before t
+                current, upcoming = upcoming, next(frames, None)
+            picture = np.zeros((PANEL, width - PANEL, 3), np.uint8)
+            if current is not None:
+                image = _fit(current.image, PANEL)
+                picture[:, : image.shape[1]] = image[:, : width - PANEL]
+            canvas = np.concatenate([picture, draw_floor(clips, k, fps, centre, half)], axis=1)
+            cv2.putText(canvas, f"{title}  {format_time(t)}", (10, PANEL - 12), cv2.FONT_HERSHEY_SIMPLEX, 0.6,
+                        (255, 255, 255), 1, cv2.LINE_AA)
+            yield canvas
 
+    encode_mp4(canvases(), out, width, PANEL, fps, audio=audio, what="the group render")
