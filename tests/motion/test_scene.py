@@ -103,7 +103,7 @@ def test_eval_group_scores_synthetic_groups_and_the_scene_beats_dancers_grounded
 
     out = tmp_path / "group.json"
     code = main(["eval", "group", "--mocap", str(mocap_dir), "--model", str(LIFTER), "--contact", str(CONTACT),
-                 "--groups", "1", "--seconds", "8", "--out", str(out)])
+                 "--groups", "1", "--seconds", "6", "--out", str(out)])
     assert code == 0
     report = capsys.readouterr().out
     assert report.splitlines()[0].split()[:4] == ["dancers", "method", "position", "m"]
