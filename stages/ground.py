@@ -1,15 +1,18 @@
-"""ground stage: data/motion24 -> data/world/<segment_id>.parquet (world motion: gravity-aligned, the
-floor at y = 0, the contact-anchored root path, one skeleton per clip, planted feet pinned, rotations)."""
+"""ground stage: data/motion24 -> data/world/<segment_id>.parquet (world motion: every clip of a segment
+in one scene, gravity-aligned, the floor at y = 0, the contact-anchored root path placed where the
+planted feet are seen, one skeleton per clip, planted feet pinned, rotations)."""
 
 from __future__ import annotations
 
 import sys
 from pathlib import Path
 
+import pipeline.motion.world.bones
 import pipeline.motion.world.contact
 import pipeline.motion.world.gravity
 import pipeline.motion.world.grounding
 import pipeline.motion.world.rotations
+import pipeline.motion.world.scene
 import pipeline.motion.world.trajectory
 import pipeline.motion.world.worldfile
 from pipeline.core.itemstage import WorkItem, run_item_stage
@@ -23,7 +26,7 @@ from pipeline.motion.world.worldfile import SCHEMA_VERSION
 
 CODE = code_fingerprint(pipeline.motion.world.grounding, pipeline.motion.world.contact, pipeline.motion.world.gravity,
                         pipeline.motion.world.trajectory, pipeline.motion.world.rotations,
-                        pipeline.motion.world.worldfile)
+                        pipeline.motion.world.worldfile, pipeline.motion.world.scene, pipeline.motion.world.bones)
 
 
 def run(root: Path) -> None:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pipeline.motion.lifting.infer
 import pipeline.motion.world.contact_model
+import pipeline.motion.world.trajectory
 from pipeline.core.errors import ModelMissingError
 from pipeline.core.itemstage import WorkItem, run_item_stage
 from pipeline.core.params import load_params, stage_params
@@ -16,7 +17,8 @@ from pipeline.core.storage import code_fingerprint, fingerprint, item_files, rea
 from pipeline.motion.lifting.infer import LiftJob, lift_segment, load_models
 from pipeline.motion.motionfile import SCHEMA_VERSION
 
-CODE = code_fingerprint(pipeline.motion.lifting.infer, pipeline.motion.world.contact_model)
+CODE = code_fingerprint(pipeline.motion.lifting.infer, pipeline.motion.world.contact_model,
+                        pipeline.motion.world.trajectory)  # the root path and the sight rays
 
 
 def run(root: Path) -> None:
