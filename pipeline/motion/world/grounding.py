@@ -57,9 +57,9 @@ class GroundedClip:
     root_camera: np.ndarray | None = None      # T x 3 the root path used, camera frame (refined when learned)
 
 
-def floor_level(points: np.ndarray, root: np.ndarray, anchors: np.ndarray, up: np.ndarray) -> float:
-    """Where the floor is along ``up`` (camera coordinates): the planted points' median height."""
-    return float(np.median(((root[:, None] + points) @ up)[anchors]))
+def floor_level(contacts: np.ndarray, up: np.ndarray) -> float:
+    """Where the floor is along ``up`` (camera coordinates): the planted points' (N x 3) median height."""
+    return float(np.median(contacts @ up))
 
 
 def floor_of(joints_cam: np.ndarray, points: np.ndarray, root: np.ndarray,
@@ -69,16 +69,19 @@ def floor_of(joints_cam: np.ndarray, points: np.ndarray, root: np.ndarray,
     their median height). ``points``: heels and toe tips, root-relative, camera frame."""
     body = np.concatenate([joints_cam, joints_cam[:, :1] + points], 1)
     _, camera = to_world(body, root=root, planted=anchors)
-    return camera.up, floor_level(points, root, anchors, camera.up)
+    return camera.up, floor_level((root[:, None] + points)[anchors], camera.up)
 
 
-def root_on_floor(joints_cam: np.ndarray, points: np.ndarray, per_frame: np.ndarray, root: np.ndarray,
-                  anchors: np.ndarray, rays: np.ndarray, frame: WorldFrame | None = None) -> np.ndarray:
-    """The root path refined again (``refine_root`` from the per-frame path ``per_frame``), now
-    also held where the planted points (``anchors``, T x 4) are seen on the floor, the points'
-    sight rays (``rays``, T x 4 x 3) meeting it. The floor is the first refined path's
-    (``floor_of``), or a scene's (``frame``)."""
-    up, level = floor_of(joints_cam, points, root, anchors) if frame is None else (frame.camera.up, frame.floor)
+def root_on_floor(joints_cam: np.ndarray, points: np.ndarray, per_frame: np.ndarray, anchors: np.ndarray,
+                  rays: np.ndarray, frame: WorldFrame | None = None) -> np.ndarray:
+    """The root path (``refine_root`` from the per-frame path ``per_frame``) held where the planted
+    points (``anchors``, T x 4) are seen on the floor, the points' sight rays (``rays``, T x 4 x 3)
+    meeting it. The floor is a scene's (``frame``), or, alone, that of the path refined without it
+    (``floor_of``)."""
+    if frame is None:
+        up, level = floor_of(joints_cam, points, refine_root(per_frame, points, anchors), anchors)
+    else:
+        up, level = frame.camera.up, frame.floor
     return refine_root(per_frame, points, anchors, floor=floor_anchors(rays, points, anchors, up, level))
 
 
@@ -101,9 +104,10 @@ def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float,
         anchors = planted_points(contact_probability, threshold, min_frames)
         planted = held_contacts(anchors, contact_probability, hold, threshold)
         per_frame, points = root.astype(np.float64), feet_cam.astype(np.float64) - joints_cam[:, :1]
-        root = refine_root(per_frame, points, anchors)
         if feet_rays is not None and anchors.any():
-            root = root_on_floor(joints_cam, points, per_frame, root, anchors, feet_rays.astype(np.float64), frame)
+            root = root_on_floor(joints_cam, points, per_frame, anchors, feet_rays.astype(np.float64), frame)
+        else:
+            root = refine_root(per_frame, points, anchors)
     if feet_cam is not None:
         joints_cam = np.concatenate([joints_cam, feet_cam.astype(np.float64)], 1)
     everything, camera = to_world(joints_cam, root=None if root is None else root.astype(np.float64),

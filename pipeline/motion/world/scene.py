@@ -26,7 +26,7 @@ import numpy as np
 
 from pipeline.motion.world.contact import MIN_PLANTED_FRAMES, PLANTED_PROBABILITY, planted_points
 from pipeline.motion.world.gravity import BODY_PRIOR, WorldFrame, camera_from_up, estimate_up
-from pipeline.motion.world.grounding import GroundedClip, ground_motion
+from pipeline.motion.world.grounding import GroundedClip, floor_level, ground_motion
 from pipeline.motion.world.trajectory import refine_root
 
 
@@ -81,7 +81,7 @@ def scene_frame(clips: list, *, threshold: float = PLANTED_PROBABILITY,
     body_up = estimate_up(np.concatenate([c.joints.astype(np.float64) for c, _ in on_floor]))
     contacts = [(p.root[:, None] + p.points)[p.anchors] for _, p in on_floor]
     up = parallel_planes_up(contacts, body_up)
-    levels = np.array([np.median(x @ up) for x in contacts])
+    levels = np.array([floor_level(x, up) for x in contacts])
     floor = float(np.median(levels))
     each = iter(floor / levels)
     return WorldFrame(camera_from_up(up), floor), [float(next(each)) if p is not None else 1.0 for p in placed]
