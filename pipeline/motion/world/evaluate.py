@@ -170,6 +170,16 @@ def scores(grounded: GroundedClip, truth: Truth, root_cam: np.ndarray | None, fp
     return row
 
 
+def at_corpus_rate(lifted, lamb: float = 1.0, clip_id: str = "run", track_id: int = 1) -> MotionClip:
+    """A lifted clip (``infer.LiftedClip``, at ``VIDEO_FPS``) as the smooth and resample stages leave
+    it: HP-filtered, at ``CORPUS_FPS``."""
+    n = len(lifted.joints)
+    clip = MotionClip(clip_id, track_id, np.arange(n, dtype=np.int32), np.arange(n) / VIDEO_FPS, lifted.joints,
+                      np.zeros(n, bool), np.zeros(n, np.int8), lifted.root, lifted.feet, lifted.contact,
+                      lifted.feet_rays)
+    return resample_clip(smooth_clip(clip, lamb), CORPUS_FPS)
+
+
 def film_and_ground(models: LiftModels, seq: MocapSequence, camera: Camera, rng: np.random.Generator,
                     lamb: float = 1.0) -> dict[str, dict]:
     """One run: ``seq`` (at ``VIDEO_FPS``) filmed by ``camera`` with noisy 2D, through the corpus's
@@ -182,11 +192,7 @@ def film_and_ground(models: LiftModels, seq: MocapSequence, camera: Camera, rng:
     keypoints = np.concatenate([xy, np.ones(xy.shape[:2] + (1,))], -1)
     (lifted,) = lift_clips(models, [keypoints[:, :17]], [keypoints[:, 17:]], camera.width, camera.height,
                            VIDEO_FPS, min_score=0.3, flip=True)
-    n = len(xy)
-    clip = MotionClip("run", 1, np.arange(n, dtype=np.int32), np.arange(n) / VIDEO_FPS, lifted.joints,
-                      np.zeros(n, bool), np.zeros(n, np.int8), lifted.root, lifted.feet, lifted.contact,
-                      lifted.feet_rays)
-    clip = resample_clip(smooth_clip(clip, lamb), CORPUS_FPS)
+    clip = at_corpus_rate(lifted, lamb)
     truth = _truth(seq, camera, clip.time)
     out = {}
     for name, probability in (("learned", clip.contact), ("baseline", None)):

@@ -8,7 +8,9 @@ Protocol:
   so that some dancers stand behind others (each take's own travel comes on top);
 - each group is filmed by one camera, a landscape phone at 1.2 m or a landscape camera on a 2 m
   stand (a portrait frame does not hold a line of six), pitched -20 to +20 degrees (> 0 looks
-  down), facing the group, with the nearest dancer 3-4.5 m away and none beyond 8 m;
+  down), facing the group, its nearest spot 3-4.5 m away; the takes' own travel comes on top, so
+  a dancer's root ranges from about 1 to 10 m from the camera over the runs (``nearest_m``,
+  ``farthest_m`` per run);
 - the 2D of each dancer is noisy (a pose model of expected OKS 0.80, 2 % of joints missing, as
   ``dance3d eval world``), and a joint that falls inside the body of a dancer nearer the camera is
   hidden: confidence 0, so the lift stage fills it;
@@ -42,11 +44,10 @@ from pipeline.motion.lifting.evaluate import add_pose_noise
 from pipeline.motion.lifting.geometry import look_at, project, to_camera
 from pipeline.motion.lifting.infer import LiftModels, lift_clips
 from pipeline.motion.mocap.sources import MocapSequence, first_seconds, resample
-from pipeline.motion.motionfile import MotionClip
-from pipeline.motion.resample import interpolate_linear, resample_clip
-from pipeline.motion.smoothing import smooth_clip
+from pipeline.motion.resample import interpolate_linear
 from pipeline.motion.world.contact import standing_level
-from pipeline.motion.world.evaluate import CORPUS_FPS, VIDEO_FPS, similarity
+from pipeline.motion.world.evaluate import CORPUS_FPS, VIDEO_FPS, at_corpus_rate, similarity
+from pipeline.motion.world.gravity import up_error_deg
 from pipeline.motion.world.grounding import ground_motion
 from pipeline.motion.world.scene import ground_scene
 from pipeline.motion.world.trajectory import assumed_focal
@@ -56,8 +57,7 @@ PITCHES = (-20.0, -10.0, 0.0, 10.0, 20.0)
 SETUPS = (("phone", 1.2), ("stand", 2.0))  # landscape, 1920 x 1080, a phone's 26 mm-equivalent lens
 WIDTH, HEIGHT = 1920, 1080
 MIN_GAP, MAX_GAP = 0.8, 2.0
-NEAREST = (3.0, 4.5)   # the nearest dancer's distance from the camera (m)
-FARTHEST = 8.0
+NEAREST = (3.0, 4.5)   # the nearest spot's distance from the camera (m); each take's travel comes on top
 ORDER_GAP = 0.5
 
 
@@ -143,10 +143,6 @@ def group_scores(estimate: list[np.ndarray], truth: list[np.ndarray]) -> dict:
     return {"position_m": error, "order_right": right, "order_pairs": total}
 
 
-def _angle(up: np.ndarray, true_up: np.ndarray) -> float:
-    return float(np.degrees(np.arccos(np.clip(np.dot(up, true_up) / np.linalg.norm(true_up), -1.0, 1.0))))
-
-
 def run_group(models: LiftModels, takes: list[MocapSequence], camera: GroupCamera, rng: np.random.Generator,
               lamb: float = 1.0) -> dict[str, dict]:
     """One group filmed by one camera, through the corpus's path: the scene and the baseline."""
@@ -156,14 +152,8 @@ def run_group(models: LiftModels, takes: list[MocapSequence], camera: GroupCamer
     seen, roots, rotation, _ = film(dancers, camera, spots, rng)
     lifted = lift_clips(models, [k[:, :17] for k in seen], [k[:, 17:] for k in seen], WIDTH, HEIGHT, VIDEO_FPS,
                         min_score=0.3, flip=True)
-    clips, truth = [], []
-    for k, (lc, root) in enumerate(zip(lifted, roots)):
-        n = len(lc.joints)
-        clip = MotionClip(f"group_{k}", k, np.arange(n, dtype=np.int32), np.arange(n) / VIDEO_FPS, lc.joints,
-                          np.zeros(n, bool), np.zeros(n, np.int8), lc.root, lc.feet, lc.contact, lc.feet_rays)
-        clip = resample_clip(smooth_clip(clip, lamb), CORPUS_FPS)
-        clips.append(clip)
-        truth.append(interpolate_linear(clip.time, np.arange(n) / VIDEO_FPS, root))
+    clips = [at_corpus_rate(lc, lamb, f"group_{k}", k) for k, lc in enumerate(lifted)]
+    truth = [interpolate_linear(c.time, np.arange(len(root)) / VIDEO_FPS, root) for c, root in zip(clips, roots)]
     true_up = rotation @ np.array([0.0, 1.0, 0.0])
     scene = ground_scene(clips, CORPUS_FPS)
     alone = [ground_motion(c, CORPUS_FPS) for c in clips]
@@ -172,9 +162,9 @@ def run_group(models: LiftModels, takes: list[MocapSequence], camera: GroupCamer
               "nearest_m": float(min(np.linalg.norm(r, axis=-1).min() for r in roots)),
               "farthest_m": float(max(np.linalg.norm(r, axis=-1).max() for r in roots))}
     return {"scene": {**common, **group_scores([g.root_camera for g in scene.clips], truth),
-                      "floor_deg": _angle(scene.frame.camera.up, true_up)},
+                      "floor_deg": up_error_deg(scene.frame.camera, true_up)},
             "baseline": {**common, **group_scores([g.root_camera for g in alone], truth),
-                         "floor_deg": float(np.median([_angle(g.camera.up, true_up) for g in alone]))}}
+                         "floor_deg": float(np.median([up_error_deg(g.camera, true_up) for g in alone]))}}
 
 
 def evaluate_groups(models: LiftModels, sequences: list[MocapSequence], *, groups: int = 8, seconds: float = 15.0,
