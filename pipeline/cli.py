@@ -216,8 +216,8 @@ def _parser() -> argparse.ArgumentParser:
                     "apart, in up to three rows), film each with one camera (a landscape phone at 1.2 m or a camera "
                     "on a 2 m stand, pitched -20 to +20 degrees, the nearest spot 3-4.5 m away, each take's travel "
                     "on top) with noisy 2D in which joints behind a nearer dancer are hidden, run every dancer "
-                    "through the corpus's path (lift with the contact model, HP smoothing, 24 fps) and ground the group in one scene. Reports "
-                    "per group size: each dancer's position relative to the group after one similarity transform "
+                    "through the corpus's path (lift with the contact model, HP smoothing, 24 fps) and ground the "
+                    "group in one scene. Reports per group size: each dancer's position relative to the group after one similarity transform "
                     "(m), the share of pairs ordered right front-to-back, and the floor's angle error; beside it, "
                     "each dancer grounded alone and placed by their own root path. Protocol: "
                     "pipeline/motion/world/group_eval.py.",
