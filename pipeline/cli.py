@@ -212,14 +212,14 @@ def _parser() -> argparse.ArgumentParser:
     _capture_eval_options(world, seconds=20.0)
     group = evaluate_sub.add_parser(
         "group", help="groups of dancers in one scene, on synthetic groups of motion capture (position, order, floor)",
-        description="Make dance groups of 2-6 held-out motion-capture takes placed on one floor (spots 0.8-2 m "
-                    "apart, in up to three rows), film each with one camera (a landscape phone at 1.2 m or a camera "
-                    "on a 2 m stand, pitched -20 to +20 degrees, the nearest spot 3-4.5 m away, each take's travel "
-                    "on top) with noisy 2D in which joints behind a nearer dancer are hidden, run every dancer "
-                    "through the corpus's path (lift with the contact model, HP smoothing, 24 fps) and ground the "
-                    "group in one scene. Reports per group size: each dancer's position relative to the group after one similarity transform "
-                    "(m), the share of pairs ordered right front-to-back, and the floor's angle error; beside it, "
-                    "each dancer grounded alone and placed by their own root path. Protocol: "
+        description="Make dance groups of 2-6 held-out motion-capture takes placed on one floor (spots 0.8-2 m apart,"
+                    " in up to three rows), film each with one camera (a landscape phone at 1.2 m or a camera on a 2 "
+                    "m stand, pitched -20 to +20 degrees, the nearest spot 3-4.5 m away, each take's travel on top) "
+                    "with noisy 2D in which joints behind a nearer dancer are hidden, run every dancer through the "
+                    "corpus's path (lift with the contact model, HP smoothing, 24 fps) and ground the group in one "
+                    "scene. Reports per group size: each dancer's position relative to the group after one similarity"
+                    " transform (m), the share of pairs ordered right front-to-back, and the floor's angle error; "
+                    "beside it, each dancer grounded alone and placed by their own root path. Protocol: "
                     "pipeline/motion/world/group_eval.py.",
         epilog="motion capture: as for `eval world` (held-out sequences of the known sources unless --all).")
     _capture_eval_options(group, seconds=15.0)
