@@ -65,6 +65,12 @@ def mpjpe(pred: np.ndarray, target: np.ndarray) -> float:
 
 def p_mpjpe(pred: np.ndarray, target: np.ndarray) -> float:
     """MPJPE after a per-frame similarity (Procrustes) alignment of pred to target."""
+    return float(p_mpjpe_per_frame(pred, target).mean())
+
+
+def p_mpjpe_per_frame(pred: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Per frame (... x J x 3 -> frames), the mean joint distance after the rotation, scale and
+    offset that bring that frame of pred nearest target (Procrustes)."""
     p = pred.reshape(-1, *pred.shape[-2:])
     t = target.reshape(-1, *target.shape[-2:])
     mu_p, mu_t = p.mean(1, keepdims=True), t.mean(1, keepdims=True)
@@ -82,4 +88,4 @@ def p_mpjpe(pred: np.ndarray, target: np.ndarray) -> float:
     r = v @ u.transpose(0, 2, 1)
     scale = s.sum(1)[:, None, None] * norm_t / norm_p
     aligned = scale * ((p - mu_p) @ r) + mu_t
-    return float(np.linalg.norm(aligned - t, axis=-1).mean())
+    return np.linalg.norm(aligned - t, axis=-1).mean(1)
