@@ -147,23 +147,30 @@ def write_group_shards(root: Path, groups: list, window: int, per_shard: int, ro
                        fps: float = FPS) -> dict[str, int]:
     """``data/corpus/groups/{train,val}/shard-NNNNN.parquet`` (the ``groups`` config of the card)."""
     from pipeline.corpus.groups import GROUP_SCHEMA_VERSION, group_table
-    from pipeline.corpus.windows import CHROMA_DIMS, MFCC_DIMS
 
+    extra = {"fps": fps, "window_frames": window, "joints": "h36m17", "units": "metres",
+             "frame": "the segment's scene: y up, floor y = 0, x/z about the group's centre"}
     written = {}
     for split in ("train", "val"):
         folder = root / CORPUS / "groups" / split
-        shutil.rmtree(folder, ignore_errors=True)
         rows = [g for g in groups if g.meta["split"] == split]
-        if rows:
-            folder.mkdir(parents=True)
-        for n, start in enumerate(range(0, len(rows), per_shard)):
-            write_parquet(group_table(rows[start: start + per_shard], window, MFCC_DIMS, CHROMA_DIMS),
-                          folder / f"shard-{n:05d}.parquet", schema_version=GROUP_SCHEMA_VERSION, params=params,
-                          extra={"fps": fps, "window_frames": window, "joints": "h36m17", "units": "metres",
-                                 "frame": "the segment's scene: y up, floor y = 0, x/z about the group's centre"},
-                          row_group_size=row_group)
-        written[split] = len(rows)
+        if not rows:  # no empty group folders in a corpus of solo dancers
+            shutil.rmtree(folder, ignore_errors=True)
+        written[split] = _write_split(folder, rows, lambda chunk: group_table(chunk, window), per_shard, row_group,
+                                      GROUP_SCHEMA_VERSION, params, extra) if rows else 0
     return written
+
+
+def _write_split(folder: Path, rows: list, to_table, per_shard: int, row_group: int, schema_version: int,
+                 params: dict, extra: dict) -> int:
+    """``folder``/shard-NNNNN.parquet of ``per_shard`` rows each, the folder made anew (the corpus is
+    rebuilt whole: no stale shards); how many rows."""
+    shutil.rmtree(folder, ignore_errors=True)
+    folder.mkdir(parents=True)
+    for n, start in enumerate(range(0, len(rows), per_shard)):
+        write_parquet(to_table(rows[start: start + per_shard]), folder / f"shard-{n:05d}.parquet",
+                      schema_version=schema_version, params=params, extra=extra, row_group_size=row_group)
+    return len(rows)
 
 
 def grounding_summary(clips: list[dict]) -> dict:
@@ -206,22 +213,14 @@ def alignment_summary(windows: list[Window], fps: float, seed: int = 0) -> dict:
 
 def write_shards(root: Path, windows: list[Window], window: int, per_shard: int, row_group: int,
                  params: dict, fps: float = FPS) -> dict[str, int]:
-    written = {}
-    for split in ("train", "val"):
-        folder = root / CORPUS / split
-        shutil.rmtree(folder, ignore_errors=True)  # the corpus is rebuilt whole: no stale shards
-        folder.mkdir(parents=True)
-        rows = [w for w in windows if w.meta["split"] == split]
-        for n, start in enumerate(range(0, len(rows), per_shard)):
-            table = windows_table(rows[start: start + per_shard], window)
-            write_parquet(table, folder / f"shard-{n:05d}.parquet", schema_version=SCHEMA_VERSION, params=params,
-                          extra={"fps": fps, "window_frames": window, "joints": "h36m17", "units": "metres",
-                                 "rotation_joints": ",".join(ROTATION_JOINTS),
-                                 "bones": ",".join(f"{H36M17[a]}-{H36M17[b]}" for a, b in H36M_BONES),
-                                 "alignment": f"motion and audio frame k centred at k/{fps:g} s on the segment clock"},
-                          row_group_size=row_group)
-        written[split] = len(rows)
-    return written
+    extra = {"fps": fps, "window_frames": window, "joints": "h36m17", "units": "metres",
+             "rotation_joints": ",".join(ROTATION_JOINTS),
+             "bones": ",".join(f"{H36M17[a]}-{H36M17[b]}" for a, b in H36M_BONES),
+             "alignment": f"motion and audio frame k centred at k/{fps:g} s on the segment clock"}
+    return {split: _write_split(root / CORPUS / split, [w for w in windows if w.meta["split"] == split],
+                                lambda chunk: windows_table(chunk, window), per_shard, row_group, SCHEMA_VERSION,
+                                params, extra)
+            for split in ("train", "val")}
 
 
 def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, params: dict, window: int,
@@ -266,12 +265,12 @@ def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, para
         alignment_png(root / CORPUS / "alignment.png", typical.motion, typical.meta["beat_frames"],
                       typical.meta["motion_beat_frames"], fps,
                       f"{typical.meta['window_id']}: beat-align score {typical.meta['beat_align_score']:.2f}")
+    group_counts = {s: sum(g.meta["split"] == s for g in groups or []) for s in ("train", "val")}
+    group_counts["dancers"] = len({c for g in groups or [] for c in g.meta["clip_ids"]})
     with atomic_path(root / CORPUS / "README.md") as tmp:
         splits = [s for s, n in (("train", totals["windows_train"]), ("val", totals["windows_val"])) if n]
         contact_file = root / METRICS / "contact.json"
         contact = json.loads(contact_file.read_text()) if contact_file.exists() else None
-        group_counts = {s: sum(g.meta["split"] == s for g in groups or []) for s in ("train", "val")}
-        group_counts["dancers"] = len({c for g in groups or [] for c in g.meta["clip_ids"]})
         tmp.write_text(hf_front_matter(splits, [s for s in ("train", "val") if group_counts[s]])
                        + render_card(stats, ledger, card_params, totals, alignment, style_stats(metas), contact,
                                      group_counts if groups else None))
@@ -288,8 +287,7 @@ def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, para
                "clips_without_world": counts.get("clips_without_world", 0),
                "clips_too_short": counts["clips_too_short"],
                "beat_alignment": alignment, "grounding": grounding_summary(counts.get("grounding", [])),
-               "group_windows": {"train": sum(g.meta["split"] == "train" for g in groups or []),
-                                 "val": sum(g.meta["split"] == "val" for g in groups or []),
+               "group_windows": {"train": group_counts["train"], "val": group_counts["val"],
                                  "dancers_median": float(np.median([g.meta["dancers"] for g in groups]))
                                  if groups else 0.0}}
     write_json(root / METRICS / "corpus.json", metrics)

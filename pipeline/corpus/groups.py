@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 
+from pipeline.corpus.windows import CHROMA_DIMS, MFCC_DIMS, tensor_column
+
 GROUP_SCHEMA_VERSION = 1
 MIN_DANCERS = 2
 
@@ -85,7 +87,7 @@ def link_solo_windows(solo: list, groups: list[GroupWindow], window: int) -> Non
         w.meta["group_window_id"] = best
 
 
-def group_schema(window: int, mfcc_dims: int, chroma_dims: int) -> pa.Schema:
+def group_schema(window: int) -> pa.Schema:
     def fixed(inner: pa.DataType, *shape: int) -> pa.DataType:
         for size in reversed(shape):
             inner = pa.list_(inner, size)
@@ -102,26 +104,19 @@ def group_schema(window: int, mfcc_dims: int, chroma_dims: int) -> pa.Schema:
         ("contact", pa.list_(fixed(pa.int8(), window, 2))),             # per dancer: left, right foot on the floor
         ("planted", pa.list_(fixed(pa.int8(), window, 4))),             # per dancer: each heel and toe tip planted
         ("camera_pitch", pa.float32()), ("camera_roll", pa.float32()),  # the scene's, degrees
-        ("mfcc", fixed(pa.float32(), window, mfcc_dims)), ("chroma", fixed(pa.float32(), window, chroma_dims)),
+        ("mfcc", fixed(pa.float32(), window, MFCC_DIMS)), ("chroma", fixed(pa.float32(), window, CHROMA_DIMS)),
         ("onset", fixed(pa.float32(), window)), ("beat", fixed(pa.int8(), window)), ("tempo", pa.float32()),
     ])
-
-
-def _fixed(values: np.ndarray, dtype: pa.DataType, shape: tuple[int, ...]) -> pa.Array:
-    arr = pa.array(np.ascontiguousarray(values).ravel(), dtype)
-    for size in reversed(shape):
-        arr = pa.FixedSizeListArray.from_arrays(arr, size)
-    return arr
 
 
 def _per_dancer(values: list[np.ndarray], dtype: pa.DataType, shape: tuple[int, ...], np_type) -> pa.Array:
     offsets = pa.array(np.concatenate([[0], np.cumsum([len(v) for v in values])]).astype(np.int32))
     flat = np.concatenate(values).astype(np_type) if values else np.zeros((0, *shape), np_type)
-    return pa.ListArray.from_arrays(offsets, _fixed(flat, dtype, shape))
+    return pa.ListArray.from_arrays(offsets, tensor_column(flat, dtype, shape))
 
 
-def group_table(windows: list[GroupWindow], window: int, mfcc_dims: int, chroma_dims: int) -> pa.Table:
-    schema = group_schema(window, mfcc_dims, chroma_dims)
+def group_table(windows: list[GroupWindow], window: int) -> pa.Table:
+    schema = group_schema(window)
     per_dancer = {
         "world_joints": _per_dancer([w.world for w in windows], pa.float32(), (window, 17, 3), np.float32),
         "root": _per_dancer([w.world[:, :, 0] for w in windows], pa.float32(), (window, 3), np.float32),
@@ -134,11 +129,11 @@ def group_table(windows: list[GroupWindow], window: int, mfcc_dims: int, chroma_
         return np.stack([getattr(w, attr) for w in windows]) if windows else np.zeros((0, *shape))
 
     music = {
-        "mfcc": _fixed(stack("mfcc", (window, mfcc_dims)).astype(np.float32), pa.float32(), (window, mfcc_dims)),
-        "chroma": _fixed(stack("chroma", (window, chroma_dims)).astype(np.float32), pa.float32(),
-                         (window, chroma_dims)),
-        "onset": _fixed(stack("onset", (window,)).astype(np.float32), pa.float32(), (window,)),
-        "beat": _fixed(stack("beat", (window,)).astype(np.int8), pa.int8(), (window,)),
+        "mfcc": tensor_column(stack("mfcc", (window, MFCC_DIMS)).astype(np.float32), pa.float32(), (window, MFCC_DIMS)),
+        "chroma": tensor_column(stack("chroma", (window, CHROMA_DIMS)).astype(np.float32), pa.float32(),
+                         (window, CHROMA_DIMS)),
+        "onset": tensor_column(stack("onset", (window,)).astype(np.float32), pa.float32(), (window,)),
+        "beat": tensor_column(stack("beat", (window,)).astype(np.int8), pa.int8(), (window,)),
     }
     tensors = {**per_dancer, **music}
     columns = [tensors[f.name] if f.name in tensors else pa.array([w.meta[f.name] for w in windows], f.type)

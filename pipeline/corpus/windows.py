@@ -96,7 +96,8 @@ class Window:
     contact_probability: np.ndarray | None = None  # W x 4 (None: NaN)
 
 
-def _nested(values: np.ndarray, dtype: pa.DataType, shape: tuple[int, ...]) -> pa.Array:
+def tensor_column(values: np.ndarray, dtype: pa.DataType, shape: tuple[int, ...]) -> pa.Array:
+    """Rows of ``shape``-shaped tensors as nested Arrow fixed-size lists."""
     arr = pa.array(values.ravel(), dtype)
     for size in reversed(shape):
         arr = pa.FixedSizeListArray.from_arrays(arr, size)
@@ -121,22 +122,23 @@ def windows_table(windows: list[Window], window: int) -> pa.Table:
                         for w in windows]) if n else np.zeros((0, BONES))
 
     arrays = {
-        "motion": _nested(stack("motion", (window, 17, 3)).astype(np.float32), pa.float32(), (window, 17, 3)),
-        "mfcc": _nested(stack("mfcc", (window, MFCC_DIMS)).astype(np.float32), pa.float32(), (window, MFCC_DIMS)),
-        "chroma": _nested(stack("chroma", (window, CHROMA_DIMS)).astype(np.float32), pa.float32(),
+        "motion": tensor_column(stack("motion", (window, 17, 3)).astype(np.float32), pa.float32(), (window, 17, 3)),
+        "mfcc": tensor_column(stack("mfcc", (window, MFCC_DIMS)).astype(np.float32), pa.float32(), (window, MFCC_DIMS)),
+        "chroma": tensor_column(stack("chroma", (window, CHROMA_DIMS)).astype(np.float32), pa.float32(),
                           (window, CHROMA_DIMS)),
-        "onset": _nested(stack("onset", (window,)).astype(np.float32), pa.float32(), (window,)),
-        "beat": _nested(stack("beat", (window,)).astype(np.int8), pa.int8(), (window,)),
-        "world_joints": _nested(world.astype(np.float32), pa.float32(), (window, 17, 3)),
-        "root": _nested(world[:, :, 0].astype(np.float32), pa.float32(), (window, 3)),
-        "contact": _nested(np.nan_to_num(stack("contact", (window, 2))).astype(np.int8), pa.int8(), (window, 2)),
-        "rotations_6d": _nested(stack("rotations", (window, ROTATION_JOINTS, 6)).astype(np.float32), pa.float32(),
+        "onset": tensor_column(stack("onset", (window,)).astype(np.float32), pa.float32(), (window,)),
+        "beat": tensor_column(stack("beat", (window,)).astype(np.int8), pa.int8(), (window,)),
+        "world_joints": tensor_column(world.astype(np.float32), pa.float32(), (window, 17, 3)),
+        "root": tensor_column(world[:, :, 0].astype(np.float32), pa.float32(), (window, 3)),
+        "contact": tensor_column(np.nan_to_num(stack("contact", (window, 2))).astype(np.int8), pa.int8(), (window, 2)),
+        "rotations_6d": tensor_column(stack("rotations", (window, ROTATION_JOINTS, 6)).astype(np.float32), pa.float32(),
                                 (window, ROTATION_JOINTS, 6)),
-        "bone_lengths": _nested(lengths.astype(np.float32), pa.float32(), (BONES,)),
-        "feet": _nested(stack("feet", (window, 4, 3)).astype(np.float32), pa.float32(), (window, 4, 3)),
-        "world_feet": _nested(stack("world_feet", (window, 4, 3)).astype(np.float32), pa.float32(), (window, 4, 3)),
-        "planted": _nested(np.nan_to_num(stack("planted", (window, 4))).astype(np.int8), pa.int8(), (window, 4)),
-        "contact_probability": _nested(stack("contact_probability", (window, 4)).astype(np.float32), pa.float32(),
+        "bone_lengths": tensor_column(lengths.astype(np.float32), pa.float32(), (BONES,)),
+        "feet": tensor_column(stack("feet", (window, 4, 3)).astype(np.float32), pa.float32(), (window, 4, 3)),
+        "world_feet": tensor_column(stack("world_feet", (window, 4, 3)).astype(np.float32), pa.float32(),
+                                    (window, 4, 3)),
+        "planted": tensor_column(np.nan_to_num(stack("planted", (window, 4))).astype(np.int8), pa.int8(), (window, 4)),
+        "contact_probability": tensor_column(stack("contact_probability", (window, 4)).astype(np.float32), pa.float32(),
                                        (window, 4)),
     }
     columns = [arrays[f.name] if f.name in arrays else pa.array(scalars[f.name], f.type) for f in schema]
