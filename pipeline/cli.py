@@ -310,8 +310,8 @@ def _eval(root: Path, args: argparse.Namespace) -> int:
             result = evaluate_group_folder(model, contact, args.mocap, heldout_only=not args.all, groups=args.groups,
                                            seconds=args.seconds)
         elif args.what == "sync":
-            from pipeline.motion.world.worldfile import format_sync as format_table
-            from pipeline.motion.world.worldfile import sync_pairs
+            from pipeline.motion.world.group_eval import format_sync as format_table
+            from pipeline.motion.world.group_eval import sync_pairs
 
             result = sync_pairs(args.world)
         elif args.what == "segments":

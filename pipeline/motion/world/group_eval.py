@@ -36,7 +36,9 @@ adds that tilt to the floor angle of every method alike.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -210,8 +212,6 @@ def evaluate_group_folder(lifter, contact, mocap, *, heldout_only: bool = True, 
                           seconds: float = 15.0, threads: int = 2, progress=None) -> dict:
     """``dance3d eval group`` on a folder ``load_folder`` reads (held-out sequences of the known
     sources; a folder of your own capture is used whole)."""
-    from pathlib import Path
-
     from pipeline.core.errors import InputError
     from pipeline.motion.lifting.evaluate import split
     from pipeline.motion.lifting.infer import load_models
@@ -244,4 +244,36 @@ def format_report(result: dict) -> str:
             lines.append(f"{size:8s} {method:9s} {row['position_m']:11.3f} {row['order_right']:12.3f} "
                          f"{row['order_pairs']:6d} {row['floor_deg']:10.2f} {row['hidden_share']:7.3f} "
                          f"{row['runs']:5d}")
+    return "\n".join(lines)
+
+
+def sync_pairs(path: Path) -> dict:
+    """``dance3d eval sync``: ``quality.sync_ratio`` for every pair of a world file's clips that
+    share 4 s or more (real group video, no ground truth)."""
+    from pipeline.core.errors import InputError
+    from pipeline.core.storage import read_meta
+    from pipeline.motion.quality import sync_ratio
+    from pipeline.motion.world.worldfile import read_world
+
+    if not Path(path).is_file():
+        raise InputError(path, "no such world file")
+    fps = float(read_meta(path).get("fps", 24.0))
+    pairs = []
+    for a, b in itertools.combinations(read_world(path), 2):
+        common = np.intersect1d(a.frame, b.frame)
+        if len(common) < 4 * fps:
+            continue
+        ratio = sync_ratio(a.joints[np.searchsorted(a.frame, common)], b.joints[np.searchsorted(b.frame, common)], fps)
+        pairs.append({"a": a.clip_id, "b": b.clip_id, "seconds": round(len(common) / fps, 2),
+                      **{k: round(v, 4) for k, v in ratio.items()}})
+    return {"world": str(path), "pairs": pairs}
+
+
+def format_sync(result: dict) -> str:
+    lines = [f"{'clip a':24s} {'clip b':24s} {'seconds':>8s} {'same m':>8s} {'shifted m':>10s} {'ratio':>7s}"]
+    for p in result["pairs"]:
+        lines.append(f"{p['a']:24s} {p['b']:24s} {p['seconds']:8.1f} {p['same_instant_m']:8.3f} {p['shifted_m']:10.3f} "
+                     f"{p['ratio']:7.3f}")
+    if not result["pairs"]:
+        lines.append("(no two clips share 4 s)")
     return "\n".join(lines)

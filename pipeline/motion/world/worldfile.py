@@ -128,34 +128,3 @@ def read_world(path: Path) -> list[WorldClip]:
                                cols["rot"][rows], facts))
     return clips
 
-
-def sync_pairs(path: Path) -> dict:
-    """``quality.sync_ratio`` for every pair of a world file's clips that share 4 s or more."""
-    import itertools
-
-    from pipeline.core.errors import InputError
-    from pipeline.core.storage import read_meta
-    from pipeline.motion.quality import sync_ratio
-
-    if not Path(path).is_file():
-        raise InputError(path, "no such world file")
-    fps = float(read_meta(path).get("fps", 24.0))
-    pairs = []
-    for a, b in itertools.combinations(read_world(path), 2):
-        common = np.intersect1d(a.frame, b.frame)
-        if len(common) < 4 * fps:
-            continue
-        ratio = sync_ratio(a.joints[np.searchsorted(a.frame, common)], b.joints[np.searchsorted(b.frame, common)], fps)
-        pairs.append({"a": a.clip_id, "b": b.clip_id, "seconds": round(len(common) / fps, 2),
-                      **{k: round(v, 4) for k, v in ratio.items()}})
-    return {"world": str(path), "pairs": pairs}
-
-
-def format_sync(result: dict) -> str:
-    lines = [f"{'clip a':24s} {'clip b':24s} {'seconds':>8s} {'same m':>8s} {'shifted m':>10s} {'ratio':>7s}"]
-    for p in result["pairs"]:
-        lines.append(f"{p['a']:24s} {p['b']:24s} {p['seconds']:8.1f} {p['same_instant_m']:8.3f} {p['shifted_m']:10.3f} "
-                     f"{p['ratio']:7.3f}")
-    if not result["pairs"]:
-        lines.append("(no two clips share 4 s)")
-    return "\n".join(lines)
