@@ -98,7 +98,7 @@ def is_static(motion: float, group: float, opts: ProposalOptions) -> bool:
     (0.035, 0.037, 0.038 against 0.035): dancers who move together must get one verdict."""
     if motion >= opts.min_motion:
         return False
-    return not group >= opts.min_motion or motion < opts.static_share * group
+    return not group >= opts.min_motion or motion < opts.static_share * group  # NaN group: no main dancers
 
 
 def reject_reason(stats: TrackStats, main_height: float, opts: ProposalOptions, group: float = float("nan")) -> str:
