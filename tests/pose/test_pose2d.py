@@ -188,17 +188,6 @@ def test_the_default_models_put_heels_toes_and_world_landmarks_in_the_data_and_c
     assert np.allclose(clip.feet[shared], tracks.feet[picked]) and np.allclose(clip.world[shared], tracks.world[picked])
 
 
-@pytest.fixture(scope="module")
-def default_models(models_dir: Path):
-    from pipeline.core.params import load_params, stage_params
-    from pipeline.pose.pose2d import load_pose_models, model_files
-    from tests.conftest import PROJECT
-
-    params = stage_params(load_params(PROJECT / "params.yaml"), "pose2d")
-    files, _ = model_files(PROJECT, params)  # found through DANCE3D_MODELS, as models_dir was
-    return load_pose_models(files), Pose2dOptions.from_params(params)
-
-
 def test_a_weak_box_is_a_person_only_when_its_pose_confirms_one(media_dir: Path, default_models) -> None:
     models, opts = default_models
     image = cv2.imread(str(media_dir / "images/dance_frame100.jpg"))

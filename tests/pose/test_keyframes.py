@@ -1,0 +1,86 @@
+"""2D on keyframes: the models pose every k-th frame, the frames between are drawn from them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pipeline.ingest.segmentvideo import SegmentVideo, frames_of
+from pipeline.pose.keyframes import held, in_between, keyframe_step, match_people
+from pipeline.pose.pose2d import FramePoses, Pose2dOptions, collect_poses, estimate_segment
+from pipeline.pose.pose2dfile import Poses
+
+
+def person(x: float, score: float = 0.9, height: float = 200.0) -> tuple[np.ndarray, np.ndarray]:
+    box = np.array([x, 0, x + height / 2, height], np.float32)
+    kp = np.zeros((17, 3), np.float32)
+    kp[:, 0], kp[:, 1], kp[:, 2] = x + 10 + np.arange(17), 5 + 10 * np.arange(17), score
+    return box, kp
+
+
+def keyframe(frame: int, people: list[tuple[np.ndarray, np.ndarray]]) -> FramePoses:
+    n = len(people)
+    boxes = np.array([b for b, _ in people], np.float32).reshape(n, 4)
+    kps = np.array([k for _, k in people], np.float32).reshape(n, 17, 3)
+    feet = kps[:, :4].copy()
+    world = np.repeat(np.arange(33, dtype=np.float32)[None, :, None] * np.ones(3, np.float32), n, 0)
+    return FramePoses(frame, frame / 30, boxes, np.full(n, 0.8, np.float32), kps, True, feet, world)
+
+
+@pytest.mark.parametrize(("source", "pose", "step"), [(24, 12, 2), (30, 12, 2), (60, 12, 5), (25, 8, 3),
+                                                      (30, 0, 1), (10, 12, 1)])
+def test_the_keyframe_step_poses_at_least_the_asked_rate(source: float, pose: float, step: int) -> None:
+    assert keyframe_step(source, pose) == step
+
+
+def test_people_are_followed_from_keyframe_to_keyframe_by_their_boxes_not_their_rank() -> None:
+    a = np.array([[0, 0, 100, 200], [300, 0, 400, 200]], np.float32)
+    b = np.array([[310, 0, 410, 200], [5, 0, 105, 200], [900, 0, 950, 100]], np.float32)
+    assert sorted(match_people(a, b)) == [(0, 1), (1, 0)]
+    assert match_people(a, np.array([[600, 0, 700, 200]], np.float32)) == []  # nobody overlaps: no pair
+
+
+def test_frames_between_two_keyframes_are_drawn_linearly_at_the_weaker_keyframes_confidence() -> None:
+    near_a, far_a = person(0, height=300), person(400, score=0.5)
+    a = keyframe(0, [near_a, far_a])
+    b = keyframe(3, [person(430, score=0.9), person(30, height=300), person(1000)])  # rank changed; a third
+    b.keypoints[1, 0, 2] = 0.1                                                        # the nose unsure at b
+    got = list(in_between(a, b, [(1, 1 / 30), (2, 2 / 30)]))
+    assert [f.frame for f in got] == [1, 2] and all(f.interpolated and not f.detected for f in got)
+    second = got[1]
+    assert len(second.scores) == 2                                  # the one seen only at b is not drawn
+    assert np.allclose(second.keypoints[0, :, 0], near_a[1][:, 0] + 20)  # two thirds of the way, largest first
+    assert np.allclose(second.keypoints[1, :, 0], far_a[1][:, 0] + 20)
+    assert second.keypoints[0, 0, 2] == pytest.approx(0.1)          # as sure as the less sure keyframe
+    assert np.allclose(second.keypoints[1, 1:, 2], 0.5)
+    assert np.allclose(second.boxes[0], [20, 0, 170, 300])
+    assert np.allclose(second.world, a.world)
+    tail = list(held(b, [(4, 4 / 30)]))
+    assert tail[0].frame == 4 and tail[0].interpolated and np.array_equal(tail[0].keypoints, b.keypoints)
+
+
+def test_a_segment_view_converts_only_the_frames_asked_for(dance_clip: Path) -> None:
+    view = SegmentVideo(dance_clip, 1.0, 24, 10, 540, 960)
+    images = [f.image is not None for f in frames_of(view, keep=lambda k: k % 4 == 0 or k == 9)]
+    assert images == [True, False, False, False, True, False, False, False, True, True]
+
+
+def test_posing_keyframes_only_gives_every_frame_and_the_keyframes_exactly_as_posing_every_frame(
+        dance_clip: Path, default_models) -> None:
+    view = SegmentVideo(dance_clip, 2.0, 24, 50, 1080, 1920)  # 50 frames: step 3 leaves the last one off the grid
+    every = collect_poses(estimate_segment(view, 24.0, default_models.detector, default_models.pose,
+                                           Pose2dOptions()))[0]
+    fast, frames = collect_poses(estimate_segment(view, 24.0, default_models.detector, default_models.pose,
+                                                  Pose2dOptions(fps=8)))
+    assert frames == 50 and np.array_equal(fast.frame, every.frame)
+    posed = ~fast.interpolated
+    assert np.array_equal(np.flatnonzero(posed), np.flatnonzero((fast.frame % 3 == 0) | (fast.frame == 49)))
+    assert np.array_equal(fast.keypoints[posed], every.keypoints[posed])
+    assert np.array_equal(fast.feet[posed], every.feet[posed])
+    moved = np.linalg.norm(fast.keypoints[~posed, :, :2] - every.keypoints[~posed, :, :2], axis=-1)
+    sure = np.minimum(fast.keypoints[~posed, :, 2], every.keypoints[~posed, :, 2]) >= 0.5
+    height = np.median(every.box[:, 3] - every.box[:, 1])
+    assert np.median(moved[sure]) < 0.02 * height                    # drawn where the models would put them
+    assert isinstance(Poses.from_table(fast.table()).interpolated, np.ndarray)
