@@ -13,7 +13,7 @@ import subprocess
 from dataclasses import asdict, dataclass
 from fractions import Fraction
 from pathlib import Path
-from typing import Iterator, Sequence
+from typing import Callable, Iterator, Sequence
 
 import av
 import numpy as np
@@ -52,7 +52,7 @@ class VideoInfo:
 class Frame:
     index: int               # 0-based decode order
     time: float              # seconds from the stream's first frame
-    image: np.ndarray        # HxWx3 uint8 BGR, upright
+    image: np.ndarray | None  # HxWx3 uint8 BGR, upright (None: a frame the reader did not ask to see)
 
 
 def ffmpeg_exe() -> str:
@@ -203,8 +203,10 @@ def decode_video(container, stream, path: Path, max_bad_packets: int = 25) -> It
         yield from decoded
 
 
-def iter_frames(path: str | Path, *, max_bad_packets: int = 25) -> Iterator[Frame]:
-    """Stream upright BGR frames with their timestamps.
+def iter_frames(path: str | Path, *, max_bad_packets: int = 25,
+                keep: Callable[[int], bool] | None = None) -> Iterator[Frame]:
+    """Stream upright BGR frames with their timestamps (``keep``: which frame indices to convert
+    to pictures; the others come with ``image`` None, decoded but not converted).
 
     A corrupt packet in the middle of a file is skipped with a warning (the frame is
     simply missing, its neighbours keep their true times); more than ``max_bad_packets``
@@ -223,7 +225,8 @@ def iter_frames(path: str | Path, *, max_bad_packets: int = 25) -> Iterator[Fram
             for frame in decode_video(container, vs, path, max_bad_packets):
                 pts = frame.pts if frame.pts is not None else start
                 time = float((pts - start) * vs.time_base)
-                image = _rotate(frame.to_ndarray(format="bgr24"), int(frame.rotation or 0))
+                image = (_rotate(frame.to_ndarray(format="bgr24"), int(frame.rotation or 0))
+                         if keep is None or keep(index) else None)
                 yield Frame(index, time, image)
                 index += 1
         except av.error.FFmpegError as exc:

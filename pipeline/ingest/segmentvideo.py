@@ -17,7 +17,7 @@ import logging
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
-from typing import Iterator, Mapping
+from typing import Callable, Iterator, Mapping
 
 import av
 
@@ -56,8 +56,10 @@ class SegmentVideo:
         """ffmpeg input options (before ``-i source``) that read this segment's span (accurate seek)."""
         return ["-ss", f"{self.start:.6f}", "-t", f"{self.duration:.6f}"]
 
-    def iter_frames(self, *, max_bad_packets: int = 25) -> Iterator[Frame]:
-        """The segment's frames, in order: Frame(k, k / rate, upright BGR image of width x height)."""
+    def iter_frames(self, *, max_bad_packets: int = 25, keep: Callable[[int], bool] | None = None
+                    ) -> Iterator[Frame]:
+        """The segment's frames, in order: Frame(k, k / rate, upright BGR image of width x height);
+        with ``keep``, only the frames k it keeps are converted (the others' image is None)."""
         if self.frames < 1:
             return
         half = 0.5 / float(self.rate)
@@ -81,8 +83,11 @@ class SegmentVideo:
                         continue  # before the segment
                     # Each slot whose window ends at or before this frame is shown by the held frame.
                     while held is not None and tau >= emitted / float(self.rate) + half:
-                        held = self._convert(held)
-                        yield Frame(emitted, float(emitted / self.rate), held[1])
+                        image = None
+                        if keep is None or keep(emitted):
+                            held = self._convert(held)
+                            image = held[1]
+                        yield Frame(emitted, float(emitted / self.rate), image)
                         emitted += 1
                         if emitted == self.frames:
                             return
@@ -93,9 +98,12 @@ class SegmentVideo:
             raise MediaError(self.source, f"no video frames at or after {self.start:.3f} s")
         if emitted < self.frames:
             log.debug("%s: source ends %d frames early; its last frame is held", self.source, self.frames - emitted)
-        held = self._convert(held)
         while emitted < self.frames:
-            yield Frame(emitted, float(emitted / self.rate), held[1])
+            image = None
+            if keep is None or keep(emitted):
+                held = self._convert(held)
+                image = held[1]
+            yield Frame(emitted, float(emitted / self.rate), image)
             emitted += 1
 
     def _convert(self, held: tuple) -> tuple:
@@ -108,8 +116,9 @@ class SegmentVideo:
         return frame, _rotate(rgb.to_ndarray(), rotation)
 
 
-def frames_of(video: Path | SegmentVideo) -> Iterator[Frame]:
-    """Frames of a video file (every frame, its own timestamps) or of a segment view."""
+def frames_of(video: Path | SegmentVideo, keep: Callable[[int], bool] | None = None) -> Iterator[Frame]:
+    """Frames of a video file (every frame, its own timestamps) or of a segment view; ``keep``:
+    which frames to convert to pictures (the others come with ``image`` None)."""
     from pipeline.ingest.media import iter_frames
 
-    return video.iter_frames() if isinstance(video, SegmentVideo) else iter_frames(video)
+    return video.iter_frames(keep=keep) if isinstance(video, SegmentVideo) else iter_frames(video, keep=keep)
