@@ -3,10 +3,11 @@
 Decoding with the detector's preprocessing, the detector, the body's pose model and the
 feet's (when it is a separate one) run in four threads joined by small bounded queues, so
 the two CPU cores overlap work on consecutive frames while memory stays constant in the
-video's length. With ``det_every = k > 1`` the
-detector runs on every k-th frame; in between each person's box is carried over from
-their keypoints in the previous frame, and the detector runs after all on a frame where a
-person is lost, a pose is weak or two people overlap (:func:`needs_detection`), as MediaPipe
+video's length. With ``fps`` the models pose keyframes only, at that rate, and the frames
+between are interpolated (:mod:`pipeline.pose.keyframes`). With ``det_every = k > 1`` the
+detector runs on every k-th posed frame; in between each person's box is carried over from
+their keypoints in the previous posed frame, and the detector runs after all on a frame where
+a person is lost, a pose is weak or two people overlap (:func:`needs_detection`), as MediaPipe
 and rtmlib's trackers fall back to their detectors.
 
 Who counts as a person (:func:`find_people`): a box at ``det_score`` or above, or a weaker one
@@ -23,10 +24,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
+import cv2
 import numpy as np
 
 from pipeline.core.errors import InputError
 from pipeline.ingest.segmentvideo import SegmentVideo, frames_of
+from pipeline.pose.keyframes import held, in_between, keyframe_step
 from pipeline.pose.models.detector import Detections, FusedDetector, PicoDetDetector, RTMDetDetector, largest
 from pipeline.pose.models.pose import BlazePose, BodyAndFeet, MoveNetPose, PoseBatch, RTMPose, TinyPose
 from pipeline.pose.models.session import create_session, providers
@@ -40,9 +43,12 @@ DEFAULT_POSE_MODEL = "movenet-lightning"
 @dataclass(frozen=True)
 class Pose2dOptions:
     top_k: int = 5                 # keep the k largest people per frame (the seed recipe uses 5)
-    det_every: int = 1             # run the detector every k-th frame
+    fps: float = 0.0               # the models pose at least this many frames a second, the frames between
+                                   # are interpolated (keyframes.keyframe_step; 0: every frame)
+    det_every: int = 1             # run the detector every k-th posed frame
     carry_min_score: float = 0.2   # keypoints at least this confident define a carried-over box
-    carry_margin: float = 0.15     # carried box = keypoint extent grown by this share per side
+    carry_margin: float = 0.15     # carried box = keypoint extent grown by this share per side ...
+    carry_framed: bool = True      # ... or framed as the detector last framed that person (box_framing)
     redetect_overlap: float = 0.3  # between detections, two carried people overlapping this much (IoU) ...
     redetect_joints: int = 6       # ... or a carried pose with fewer joints at confirm_joint_score, or one
                                    # lost: the detector runs on that frame after all (0: never on demand)
@@ -57,8 +63,8 @@ class Pose2dOptions:
 
     @staticmethod
     def from_params(params: dict) -> "Pose2dOptions":
-        names = ("top_k", "det_every", "det_score", "confirm_score", "confirm_joints", "confirm_joint_score",
-                 "confirm_min_height", "min_joints", "dark_mean", "redetect_overlap", "redetect_joints")
+        names = ("top_k", "fps", "det_every", "det_score", "confirm_score", "confirm_joints", "confirm_joint_score",
+                 "confirm_min_height", "min_joints", "dark_mean", "redetect_overlap", "redetect_joints", "carry_framed")
         fields = {f: type(getattr(Pose2dOptions, f)) for f in names}
         return Pose2dOptions(**{f: kind(params[f]) for f, kind in fields.items() if f in params})
 
@@ -74,10 +80,16 @@ def lift_dark(image: np.ndarray, below: float) -> np.ndarray:
     Night clubs and stage lighting: both models were trained on well-lit photos and see
     nobody in a near-black frame, though the picture is there.
     """
-    if below <= 0 or float(image.mean()) >= below:
+    if below <= 0 or _mean_value(image) >= below:
         return image
     top = max(float(np.percentile(image, 99.5)), 1.0)
     return np.clip(image.astype(np.float32) * (200.0 / top), 0, 255).astype(np.uint8)
+
+
+def _mean_value(image: np.ndarray) -> float:
+    """The mean pixel value over all channels (OpenCV's, several times numpy's speed on a 1080p frame)."""
+    channels = image.shape[2] if image.ndim == 3 else 1
+    return float(sum(cv2.mean(image)[:channels]) / channels)
 
 
 def _share_inside(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -138,6 +150,7 @@ class FramePoses:
     detected: bool
     feet: np.ndarray       # Nx4x3
     world: np.ndarray      # Nx33x3 (NaN: the pose model gives none)
+    interpolated: bool = False  # drawn between two keyframes (keyframes.in_between), not posed
 
 
 _DONE = object()
@@ -181,31 +194,68 @@ def _threaded(source: Iterator[Any], size: int, stop: threading.Event) -> Iterat
     return _drain(q)
 
 
-def carried_boxes(keypoints: np.ndarray, width: int, height: int, min_score: float, margin: float) -> np.ndarray:
-    """Boxes around each person's confident keypoints, grown by ``margin``; NaN rows when too few."""
+def keypoint_extent(keypoints: np.ndarray, min_score: float) -> np.ndarray:
+    """(N x 4) the box spanned by each person's keypoints of at least ``min_score``; NaN when fewer than 3."""
     boxes = np.full((len(keypoints), 4), np.nan, np.float32)
     for i, kp in enumerate(keypoints):
         good = kp[kp[:, 2] >= min_score]
-        if len(good) < 3:
-            continue
-        x1, y1 = good[:, :2].min(0)
-        x2, y2 = good[:, :2].max(0)
-        mx, my = (x2 - x1) * margin, (y2 - y1) * margin
-        boxes[i] = [max(0, x1 - mx), max(0, y1 - my), min(width, x2 + mx), min(height, y2 + my)]
+        if len(good) >= 3:
+            boxes[i] = [*good[:, :2].min(0), *good[:, :2].max(0)]
     return boxes
+
+
+def _sides(extent: np.ndarray) -> np.ndarray:
+    w, h = np.maximum(extent[:, 2] - extent[:, 0], 1.0), np.maximum(extent[:, 3] - extent[:, 1], 1.0)
+    return np.stack([w, h, w, h], 1)
+
+
+def box_framing(boxes: np.ndarray, keypoints: np.ndarray, min_score: float, margin: float) -> np.ndarray:
+    """(N x 4) how each box frames its person's keypoints: its edges' offsets from the keypoints'
+    extent, in shares of the extent's width and height (``margin`` on every side where too few)."""
+    extent = keypoint_extent(keypoints, min_score)
+    framing = (np.asarray(boxes, np.float32).reshape(-1, 4) - extent) / _sides(extent)
+    default = np.array([-margin, -margin, margin, margin], np.float32)
+    return np.where(np.isnan(framing), default, framing).astype(np.float32)
+
+
+def carried_boxes(keypoints: np.ndarray, width: int, height: int, min_score: float, margin: float,
+                  framing: np.ndarray | None = None) -> np.ndarray:
+    """Boxes around each person's confident keypoints, framed as ``framing`` says (their last
+    detected box's :func:`box_framing`) or grown by ``margin``; NaN rows when too few."""
+    extent = keypoint_extent(keypoints, min_score)
+    if framing is None:
+        framing = np.tile(np.array([-margin, -margin, margin, margin], np.float32), (len(keypoints), 1))
+    boxes = extent + framing * _sides(extent)
+    boxes[:, [0, 2]] = boxes[:, [0, 2]].clip(0, width)
+    boxes[:, [1, 3]] = boxes[:, [1, 3]].clip(0, height)
+    return boxes.astype(np.float32)
 
 
 def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opts: Pose2dOptions
                      ) -> Iterator[FramePoses]:
-    """Yield the poses of every frame of ``video`` (a segment view or a video file), in order."""
+    """Yield the poses of every frame of ``video`` (a segment view or a video file), in order.
+
+    The models pose every ``keyframe_step``-th frame (and a segment's last); the frames between
+    are decoded but not converted, and come out interpolated once the next keyframe is posed.
+    """
     stop = threading.Event()
     every = max(1, int(opts.det_every))
+    step = keyframe_step(fps, opts.fps)
+    last = video.frames - 1 if isinstance(video, SegmentVideo) else -1
+
+    def posed(index: int) -> bool:
+        return index % step == 0 or index == last
 
     def decoded() -> Iterator[tuple]:
-        for frame in frames_of(video):
+        keyframes = 0
+        for frame in frames_of(video, keep=posed if step > 1 else None):
             number = int(round(frame.time * fps))
+            if frame.image is None:
+                yield number, frame.time, None, None
+                continue
             image = lift_dark(frame.image, opts.dark_mean)
-            box: Any = detector.preprocess(image) if number % every == 0 else None  # None: carry over
+            box: Any = detector.preprocess(image) if keyframes % every == 0 else None  # None: carry over
+            keyframes += 1
             yield number, frame.time, image, box
 
     def detected(frames: Iterator[tuple]) -> Iterator[tuple]:
@@ -221,27 +271,46 @@ def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opt
     def people(frames: Iterator[tuple]) -> Iterator[tuple]:
         previous: Detections | None = None
         keypoints = np.zeros((0, 17, 3), np.float32)
+        framing = np.zeros((0, 4), np.float32)  # how the detector framed each person (box_framing)
         for number, time, image, dets in frames:
-            was_detected = dets is not None
+            if image is None:  # between keyframes
+                yield number, time, None, None, None, False
+                continue
+            found = dets  # None: carry the boxes over
             if dets is None:
-                dets = _carry(previous, keypoints, image, opts)
+                dets, kept = _carry(previous, keypoints, framing, image, opts)
+                framing = framing[kept]
                 batch: PoseBatch = body_model.estimate(image, dets.boxes)
                 if needs_detection(previous, dets, batch.keypoints, opts):
-                    dets, batch = find_people(image, detector.detect(image), body_model, opts)
-                    was_detected = True
-            else:
-                dets, batch = find_people(image, dets, body_model, opts)
+                    found = detector.detect(image)
+            if found is not None:
+                dets, batch = find_people(image, found, body_model, opts)
+                framing = box_framing(dets.boxes, batch.keypoints, opts.carry_min_score, opts.carry_margin)
+            was_detected = found is not None
             previous, keypoints = dets, batch.keypoints
             yield number, time, image, dets, batch, was_detected
 
     try:
         q = opts.queue_size
         stream = _threaded(people(_threaded(detected(_threaded(decoded(), q, stop)), q, stop)), q, stop)
+        keyframe: FramePoses | None = None
+        between: list[tuple[int, float]] = []  # frames since the last keyframe, waiting for the next
         for number, time, image, dets, batch, was_detected in stream:
+            if image is None:
+                between.append((number, time))
+                continue
             if feet_model is not None:
                 batch = feet_model.complete(image, dets.boxes, batch)
             world = batch.world if batch.world is not None else np.full((len(batch), WORLD, 3), np.nan, np.float32)
-            yield FramePoses(number, time, dets.boxes, dets.scores, batch.keypoints, was_detected, batch.feet, world)
+            current = FramePoses(number, time, dets.boxes, dets.scores, batch.keypoints, was_detected, batch.feet,
+                                 world)
+            if between and keyframe is not None:
+                yield from in_between(keyframe, current, between, opts.top_k)
+            between = []
+            yield current
+            keyframe = current
+        if between and keyframe is not None:  # a video file's frames after its last keyframe
+            yield from held(keyframe, between)
     finally:
         stop.set()
 
@@ -265,19 +334,22 @@ def needs_detection(previous: Detections | None, carried: Detections, keypoints:
     return False
 
 
-def _carry(previous: Detections | None, keypoints: np.ndarray, image: np.ndarray, opts: Pose2dOptions) -> Detections:
+def _carry(previous: Detections | None, keypoints: np.ndarray, framing: np.ndarray, image: np.ndarray,
+           opts: Pose2dOptions) -> tuple[Detections, np.ndarray]:
+    """The previous people's boxes carried onto this frame, and which of them could be (a mask)."""
     if previous is None or not len(previous.scores):
-        return Detections(np.zeros((0, 4), np.float32), np.zeros(0, np.float32))
+        return Detections(np.zeros((0, 4), np.float32), np.zeros(0, np.float32)), np.zeros(0, bool)
     h, w = image.shape[:2]
-    boxes = carried_boxes(keypoints, w, h, opts.carry_min_score, opts.carry_margin)
+    boxes = carried_boxes(keypoints, w, h, opts.carry_min_score, opts.carry_margin,
+                          framing if opts.carry_framed else None)
     keep = ~np.isnan(boxes[:, 0])
-    return Detections(boxes[keep], previous.scores[keep])
+    return Detections(boxes[keep], previous.scores[keep]), keep
 
 
 def collect_poses(frames: Iterator[FramePoses], progress: Callable[[], None] | None = None) -> tuple[Poses, int]:
     """Collect per-person rows of every frame; returns them and the number of frames seen."""
     rows: dict[str, list] = {k: [] for k in ("frame", "time", "person", "box", "box_score", "keypoints", "detected",
-                                             "feet", "world")}
+                                             "feet", "world", "interpolated")}
     seen = 0
     for fp in frames:
         seen += 1
@@ -291,6 +363,7 @@ def collect_poses(frames: Iterator[FramePoses], progress: Callable[[], None] | N
         rows["detected"].append(np.full(n, fp.detected))
         rows["feet"].append(np.asarray(fp.feet, np.float32).reshape(n, FEET, 3))
         rows["world"].append(np.asarray(fp.world, np.float32).reshape(n, WORLD, 3))
+        rows["interpolated"].append(np.full(n, fp.interpolated))
         if progress:
             progress()
     empty = {"box": (0, 4), "keypoints": (0, 17, 3), "feet": (0, FEET, 3), "world": (0, WORLD, 3)}

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from pipeline.ingest.segmentvideo import SegmentVideo, frames_of
-from pipeline.pose.keyframes import held, in_between, keyframe_step, match_people
+from pipeline.pose.keyframes import drawn_between, held, in_between, keyframe_step, match_people
 from pipeline.pose.pose2d import FramePoses, Pose2dOptions, collect_poses, estimate_segment
 from pipeline.pose.pose2dfile import Poses
 
@@ -42,21 +42,23 @@ def test_people_are_followed_from_keyframe_to_keyframe_by_their_boxes_not_their_
     assert match_people(a, np.array([[600, 0, 700, 200]], np.float32)) == []  # nobody overlaps: no pair
 
 
-def test_frames_between_two_keyframes_are_drawn_linearly_at_the_weaker_keyframes_confidence() -> None:
+def test_frames_between_two_keyframes_are_drawn_linearly_at_the_weaker_keyframes_confidence_or_held() -> None:
     near_a, far_a = person(0, height=300), person(400, score=0.5)
     a = keyframe(0, [near_a, far_a])
-    b = keyframe(3, [person(430, score=0.9), person(30, height=300), person(1000)])  # rank changed; a third
+    b = keyframe(3, [person(430, score=0.9), person(30, height=300), person(1000, height=150)])  # a third, smaller
     b.keypoints[1, 0, 2] = 0.1                                                        # the nose unsure at b
     got = list(in_between(a, b, [(1, 1 / 30), (2, 2 / 30)]))
     assert [f.frame for f in got] == [1, 2] and all(f.interpolated and not f.detected for f in got)
-    second = got[1]
-    assert len(second.scores) == 2                                  # the one seen only at b is not drawn
+    first, second = got
+    assert len(first.scores) == 2 and len(second.scores) == 3     # the one seen only at b: held from b, nearer it
+    assert np.array_equal(second.keypoints[2], b.keypoints[2])
+    assert len(list(in_between(a, b, [(2, 2 / 30)], top_k=2))[0].scores) == 2  # no more than the top k
     assert np.allclose(second.keypoints[0, :, 0], near_a[1][:, 0] + 20)  # two thirds of the way, largest first
     assert np.allclose(second.keypoints[1, :, 0], far_a[1][:, 0] + 20)
     assert second.keypoints[0, 0, 2] == pytest.approx(0.1)          # as sure as the less sure keyframe
     assert np.allclose(second.keypoints[1, 1:, 2], 0.5)
     assert np.allclose(second.boxes[0], [20, 0, 170, 300])
-    assert np.allclose(second.world, a.world)
+    assert np.allclose(second.world[:2], a.world)
     tail = list(held(b, [(4, 4 / 30)]))
     assert tail[0].frame == 4 and tail[0].interpolated and np.array_equal(tail[0].keypoints, b.keypoints)
 
@@ -69,10 +71,11 @@ def test_a_segment_view_converts_only_the_frames_asked_for(dance_clip: Path) -> 
 
 def test_posing_keyframes_only_gives_every_frame_and_the_keyframes_exactly_as_posing_every_frame(
         dance_clip: Path, default_models) -> None:
+    models, _ = default_models
     view = SegmentVideo(dance_clip, 2.0, 24, 50, 1080, 1920)  # 50 frames: step 3 leaves the last one off the grid
-    every = collect_poses(estimate_segment(view, 24.0, default_models.detector, default_models.pose,
+    every = collect_poses(estimate_segment(view, 24.0, models.detector, models.pose,
                                            Pose2dOptions()))[0]
-    fast, frames = collect_poses(estimate_segment(view, 24.0, default_models.detector, default_models.pose,
+    fast, frames = collect_poses(estimate_segment(view, 24.0, models.detector, models.pose,
                                                   Pose2dOptions(fps=8)))
     assert frames == 50 and np.array_equal(fast.frame, every.frame)
     posed = ~fast.interpolated
@@ -84,3 +87,30 @@ def test_posing_keyframes_only_gives_every_frame_and_the_keyframes_exactly_as_po
     height = np.median(every.box[:, 3] - every.box[:, 1])
     assert np.median(moved[sure]) < 0.02 * height                    # drawn where the models would put them
     assert isinstance(Poses.from_table(fast.table()).interpolated, np.ndarray)
+
+
+def test_one_persons_track_drawn_from_keyframes_keeps_the_keyframes_and_the_last_frame() -> None:
+    t = np.arange(8, dtype=np.float64)
+    points = np.stack([t ** 2, 2 * t, np.where(t == 4, 0.2, 0.9)], -1)[:, None, :]  # one joint, curving
+    drawn = drawn_between(points, 3)
+    kept = [0, 3, 6, 7]
+    assert np.array_equal(drawn[kept], points[kept])
+    assert drawn[4, 0, 0] == pytest.approx(9 + (36 - 9) / 3)    # a straight line between frames 3 and 6
+    assert drawn[4, 0, 2] == pytest.approx(0.9)                  # its own score is not seen: the keyframes'
+    assert np.array_equal(drawn_between(points, 1), points)
+
+
+def test_a_carried_box_frames_the_moved_keypoints_as_the_detector_framed_them() -> None:
+    from pipeline.pose.pose2d import box_framing, carried_boxes
+
+    _, kp = person(100)                                   # keypoints span x 110-126, y 5-165
+    detected = np.array([[90, -20, 150, 200]], np.float32)  # the detector's box: wider below than above
+    framing = box_framing(detected, kp[None], 0.2, 0.15)
+    moved = kp.copy()
+    moved[:, 0] += 40                                      # she steps 40 px right
+    moved[:, 1] = 5 + 2 * (moved[:, 1] - 5)                # and looks twice as tall
+    box = carried_boxes(moved[None], 1000, 1000, 0.2, 0.15, framing)[0]
+    assert np.allclose(box, [130, 0, 190, 395], atol=1e-3)  # clipped at the top; 2 x 35 px below the feet
+    plain = carried_boxes(moved[None], 1000, 1000, 0.2, 0.15)[0]
+    assert np.allclose(plain, [150 - 0.15 * 16, 0, 166 + 0.15 * 16, 325 + 0.15 * 320], atol=1e-3)
+
