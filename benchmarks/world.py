@@ -25,9 +25,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--mocap", type=Path, default=Path(os.environ.get("DANCE3D_MOCAP", "../shared/mocap")))
     parser.add_argument("--seconds", type=float, default=20.0, help="at most this much of each sequence")
+    parser.add_argument("--pose-fps", type=float, default=0.0, help="2D on keyframes at this rate (pose2d.fps)")
+    parser.add_argument("--clean-2d", action="store_true", help="no 2D noise")
+    parser.add_argument("--frame-noise", type=float, default=1.0,
+                        help="share of the 2D noise new on every frame (the rest drifts; default 1)")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/world.json"))
     args = parser.parse_args()
-    run_and_save(lambda: evaluate_folder(LIFTER, CONTACT, args.mocap, seconds=args.seconds), format_report, args.out)
+    run_and_save(lambda: evaluate_folder(LIFTER, CONTACT, args.mocap, seconds=args.seconds, pose_fps=args.pose_fps,
+                                         noise=not args.clean_2d, frame_noise=args.frame_noise),
+                 format_report, args.out)
 
 
 def run_and_save(evaluate: Callable[[], dict], report: Callable[[dict], str], out: Path) -> dict:

@@ -210,6 +210,13 @@ def _parser() -> argparse.ArgumentParser:
         epilog="motion capture: as for `eval lifter` (held-out sequences of the known sources unless --all); "
                "sequences need heels and toe tips ('feet' in a joint-position .npz).")
     _capture_eval_options(world, seconds=20.0)
+    world.add_argument("--pose-fps", type=float, default=0.0,
+                       help="pose the 2D on keyframes at this rate and draw the frames between, as pose2d.fps does "
+                            "(default 0: every frame)")
+    world.add_argument("--clean-2d", action="store_true", help="no 2D noise (what keyframes alone lose)")
+    world.add_argument("--frame-noise", type=float, default=1.0,
+                       help="the share of the 2D noise's variance drawn afresh on every frame; the rest drifts "
+                            "over about a second (default 1: all of it, the protocol's figures)")
     group = evaluate_sub.add_parser(
         "group", help="groups of dancers in one scene, on synthetic groups of motion capture (position, order, floor)",
         description="Make dance groups of 2-6 held-out motion-capture takes placed on one floor (spots 0.8-2 m apart,"
@@ -301,7 +308,8 @@ def _eval(root: Path, args: argparse.Namespace) -> int:
             from pipeline.motion.world.evaluate import format_report as format_table
 
             model, contact = _lift_models(root, args)
-            result = evaluate_folder(model, contact, args.mocap, heldout_only=not args.all, seconds=args.seconds)
+            result = evaluate_folder(model, contact, args.mocap, heldout_only=not args.all, seconds=args.seconds,
+                                     pose_fps=args.pose_fps, noise=not args.clean_2d, frame_noise=args.frame_noise)
         elif args.what == "group":
             from pipeline.motion.world.group_eval import evaluate_group_folder
             from pipeline.motion.world.group_eval import format_report as format_table

@@ -109,13 +109,25 @@ def view(seq_h36m: np.ndarray, seq_coco: np.ndarray, camera: Camera) -> tuple[np
 
 
 def add_pose_noise(xy: np.ndarray, rng: np.random.Generator, level: float = OKS80_NOISE,
-                   drop: float = 0.02) -> np.ndarray:
+                   drop: float = 0.02, frame_share: float = 1.0, slow_frames: float = 12.0) -> np.ndarray:
     """Per-joint noise of a pose model (std level * 2 sigma_j * s, s the person's box size per
-    frame) and missing joints carried over from the previous frame."""
+    frame) and missing joints carried over from the previous frame.
+
+    ``frame_share`` of the noise's variance is drawn afresh on every frame; the rest drifts slowly
+    (white noise smoothed over ``slow_frames``, a Gaussian's sigma, rescaled to unit variance), as a
+    real pose model's error on video mostly does: it follows the person's look, which changes
+    slowly (``dance3d eval world --frame-noise``; README, "2D speed")."""
     span = xy[:, :17].max(1) - xy[:, :17].min(1)
     size = np.sqrt(np.maximum(span[:, 0] * span[:, 1], 1.0))[:, None, None]
     sigmas = KEYPOINT_SIGMAS[: xy.shape[1]]
-    noisy = xy + rng.normal(0.0, 1.0, xy.shape) * level * 2 * sigmas[None, :, None] * size
+    unit = rng.normal(0.0, 1.0, xy.shape)
+    if frame_share < 1.0:
+        from scipy.ndimage import gaussian_filter1d
+
+        slow = gaussian_filter1d(rng.normal(0.0, 1.0, xy.shape), slow_frames, axis=0, mode="reflect")
+        slow /= max(float(slow.std()), 1e-9)
+        unit = np.sqrt(frame_share) * unit + np.sqrt(1.0 - frame_share) * slow
+    noisy = xy + unit * level * 2 * sigmas[None, :, None] * size
     dropped = rng.random(xy.shape[:2]) < drop
     for t in range(1, len(noisy)):
         noisy[t, dropped[t]] = noisy[t - 1, dropped[t]]

@@ -54,6 +54,7 @@ from pipeline.motion.world.gravity import up_error_deg
 from pipeline.motion.world.grounding import GroundedClip, ground_clip
 from pipeline.motion.world.scene import ground_scene
 from pipeline.motion.world.trajectory import align_scale_offset
+from pipeline.pose.keyframes import drawn_between, keyframe_step
 
 VIDEO_FPS = 30.0
 CORPUS_FPS = 24.0
@@ -181,15 +182,19 @@ def at_corpus_rate(lifted, lamb: float = 1.0, clip_id: str = "run", track_id: in
 
 
 def film_and_ground(models: LiftModels, seq: MocapSequence, camera: Camera, rng: np.random.Generator,
-                    lamb: float = 1.0) -> dict[str, dict]:
-    """One run: ``seq`` (at ``VIDEO_FPS``) filmed by ``camera`` with noisy 2D, through the corpus's
-    path, scored with the contact model (``learned``) and without (``baseline``)."""
+                    lamb: float = 1.0, pose_fps: float = 0.0, noise: bool = True,
+                    frame_noise: float = 1.0) -> dict[str, dict]:
+    """One run: ``seq`` (at ``VIDEO_FPS``) filmed by ``camera`` with noisy 2D (``noise``; ``frame_noise``
+    of its variance new on every frame, the rest drifting: ``add_pose_noise``), posed on keyframes at
+    ``pose_fps`` as the pose2d stage would (0: every frame), through the corpus's path, scored with
+    the contact model (``learned``) and without (``baseline``)."""
     body = np.concatenate([seq.h36m, seq.feet], 1)
     xy, _ = view(body, np.concatenate([seq.coco, seq.feet], 1), camera)
     feet = xy[:, 17:]
     in_frame = float(((feet >= 0) & (feet <= [camera.width, camera.height])).all(-1).mean())
-    xy = add_pose_noise(xy, rng)
+    xy = add_pose_noise(xy, rng, frame_share=frame_noise) if noise else xy
     keypoints = np.concatenate([xy, np.ones(xy.shape[:2] + (1,))], -1)
+    keypoints = drawn_between(keypoints, keyframe_step(VIDEO_FPS, pose_fps))
     (lifted,) = lift_clips(models, [keypoints[:, :17]], [keypoints[:, 17:]], camera.width, camera.height,
                            VIDEO_FPS, min_score=0.3, flip=True)
     clip = at_corpus_rate(lifted, lamb)
@@ -207,7 +212,8 @@ def film_and_ground(models: LiftModels, seq: MocapSequence, camera: Camera, rng:
 
 
 def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: float = 20.0,
-                   seed: int = 0, progress=None) -> dict:
+                   seed: int = 0, progress=None, pose_fps: float = 0.0, noise: bool = True,
+                   frame_noise: float = 1.0) -> dict:
     """Medians per source and over all, for each variant (``learned``, ``baseline``), and by pitch."""
     rng = np.random.default_rng(seed)
     runs: list[dict] = []
@@ -216,7 +222,8 @@ def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: 
         if seq.frames < 2 * VIDEO_FPS:
             continue
         for camera in CAMERAS:
-            for variant, row in film_and_ground(models, seq, camera, rng).items():
+            for variant, row in film_and_ground(models, seq, camera, rng, pose_fps=pose_fps, noise=noise,
+                                                frame_noise=frame_noise).items():
                 runs.append({"source": seq.source, "sequence": seq.name, "pitch": camera.pitch_deg,
                              "variant": variant, **row})
             if progress:
@@ -227,7 +234,9 @@ def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: 
         return {k: round(float(np.nanmedian([r[k] for r in rows])), 4) for k in keys}
 
     result: dict = {"protocol": {"sequences": len({r["sequence"] for r in runs}), "cameras": len(CAMERAS),
-                                 "seconds_each": seconds, "video_fps": VIDEO_FPS, "corpus_fps": CORPUS_FPS}}
+                                 "seconds_each": seconds, "video_fps": VIDEO_FPS, "corpus_fps": CORPUS_FPS,
+                                 "pose_fps": pose_fps, "pose_step": keyframe_step(VIDEO_FPS, pose_fps),
+                                 "noisy_2d": noise, "frame_noise": frame_noise}}
     for variant in dict.fromkeys(r["variant"] for r in runs):
         rows = [r for r in runs if r["variant"] == variant]
         result[variant] = {"all": medians(rows),
@@ -243,7 +252,8 @@ def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: 
 
 
 def evaluate_folder(lifter: Path, contact: Path | None, mocap: Path, *, heldout_only: bool = True,
-                    seconds: float = 20.0, threads: int = 2, progress=None) -> dict:
+                    seconds: float = 20.0, threads: int = 2, progress=None, pose_fps: float = 0.0,
+                    noise: bool = True, frame_noise: float = 1.0) -> dict:
     """``dance3d eval world`` on a folder ``load_folder`` reads: a folder of the known sources is cut
     to the train_lifter split's held-out sequences; a folder of your own capture is used whole."""
     from pipeline.motion.lifting.infer import load_models
@@ -259,7 +269,8 @@ def evaluate_folder(lifter: Path, contact: Path | None, mocap: Path, *, heldout_
         if path is not None and not Path(path).is_file():
             raise InputError(path, "no such model")
     models = load_models(str(lifter), str(contact) if contact else "", threads)
-    result = evaluate_world(models, sequences, seconds, progress=progress)
+    result = evaluate_world(models, sequences, seconds, progress=progress, pose_fps=pose_fps, noise=noise,
+                            frame_noise=frame_noise)
     result["protocol"].update(lifter=str(lifter), contact_model=str(contact) if contact else "none",
                               mocap=str(mocap), split="held-out sequences of the train_lifter split" if held
                               else "every sequence")
