@@ -70,6 +70,17 @@ def test_noise_is_that_of_a_pose_model_with_oks_080() -> None:
     assert abs(oks - 0.80) < 0.02
 
 
+def test_noise_that_mostly_drifts_has_the_same_level_but_little_of_it_changes_from_frame_to_frame() -> None:
+    seq = _walker(frames=400)
+    xy, _ = view(seq.h36m, seq.coco, PROTOCOL_CAMERAS[0])
+    white = add_pose_noise(xy, np.random.default_rng(1), drop=0.0) - xy
+    drifting = add_pose_noise(xy, np.random.default_rng(1), drop=0.0, frame_share=0.05) - xy
+    assert np.array_equal(add_pose_noise(xy, np.random.default_rng(1), drop=0.0, frame_share=1.0) - xy, white)
+    assert np.std(drifting) == pytest.approx(np.std(white), rel=0.15)
+    step = np.std(np.diff(drifting, axis=0)) / np.std(np.diff(white, axis=0))
+    assert 0.15 < step < 0.35  # about sqrt(0.05) of the white noise's frame-to-frame change, plus a little drift
+
+
 def test_a_lifter_that_answers_zeros_scores_the_distance_of_joints_from_the_root() -> None:
     seq = _walker()
 
