@@ -8,8 +8,15 @@ five-person clip (two dancers above three seated musicians, built from the share
 and the peak RSS of the pose2d+track work on a short and a long input (the clip looped;
 --short / --long seconds, 10 and 60 by default).
 
+With ``--code DIR`` (repeatable: e.g. a worktree of an older commit, and this one), the stage work
+(a) of each code tree with its own params.yaml is timed instead, side by side in one run: each
+clip, each run, the trees in turn, each in a fresh process (models loaded and warmed up first,
+not timed); the speed of each tree is the first tree's time over its own, and ``real_time`` the
+clip's length over its time.
+
 Usage: DANCE3D_MODELS=../shared/models DANCE3D_MEDIA=../shared/media python benchmarks/pose2d.py
        [--pose-model movenet-lightning --detector rtmdet-nano-person] (another configuration)
+       [--code /tmp/old_tree --code .] (code trees side by side)
 """
 
 from __future__ import annotations
@@ -146,6 +153,55 @@ def measure(clip: Path, models, opts: Pose2dOptions, runs: int) -> dict:
             "a_wall_over_c_model_time": round(ma / mc, 2)}
 
 
+TREE_RUN = """
+import json, sys, time
+from pathlib import Path
+sys.path.insert(0, sys.argv[1])
+from pipeline.core.params import load_params, stage_params
+from pipeline.pose.pose2d import Pose2dOptions, collect_poses, estimate_segment, load_pose_models, model_files
+from pipeline.pose.tracking import assign_tracks
+root, clip, fps = Path(sys.argv[1]), Path(sys.argv[2]), float(sys.argv[3])
+params = {**stage_params(load_params(root / "params.yaml"), "pose2d"), **json.loads(sys.argv[4])}
+opts = Pose2dOptions.from_params(params)
+models = load_pose_models(model_files(root, params)[0])
+def work():
+    poses, frames = collect_poses(estimate_segment(clip, fps, models.detector, models.pose, opts))
+    assign_tracks(poses.frame, poses.box, poses.keypoints)
+    return frames
+work()  # warm up
+t0 = time.perf_counter()
+frames = work()
+print(json.dumps({"seconds": time.perf_counter() - t0, "frames": frames}))
+"""
+
+
+def tree_seconds(code: Path, clip: Path, fps: float, overrides: dict) -> tuple[float, int]:
+    """The stage work of the code tree ``code`` (its params.yaml) on ``clip``, in a fresh process."""
+    out = subprocess.run([sys.executable, "-c", TREE_RUN, str(code), str(clip), str(fps), json.dumps(overrides)],
+                         capture_output=True, text=True, check=True).stdout
+    result = json.loads(out.strip().splitlines()[-1])
+    return result["seconds"], result["frames"]
+
+
+def compare_trees(codes: list[Path], clips: dict[str, Path], overrides: dict, runs: int) -> dict:
+    report = {}
+    for name, clip in clips.items():
+        info = probe(clip)
+        times: dict[int, list[float]] = {i: [] for i in range(len(codes))}
+        for _ in range(runs):
+            for i, code in enumerate(codes):  # in turn, so machine noise hits every tree alike
+                seconds, frames = tree_seconds(code, clip, info.fps, overrides)
+                times[i].append(seconds)
+        medians = [statistics.median(times[i]) for i in range(len(codes))]
+        report[name] = {"clip": f"{clip.name} ({info.width}x{info.height}, {frames} frames at {info.fps:g} fps)",
+                        **{str(code): {"seconds": round(m, 2), "fps": round(frames / m, 1),
+                                       "real_time": round(frames / info.fps / m, 2),
+                                       "speed_over_first": round(medians[0] / m, 2)}
+                           for code, m in zip(codes, medians)}}
+        print(json.dumps({name: report[name]}), flush=True)
+    return report
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--runs", type=int, default=5)
@@ -154,11 +210,21 @@ def main() -> None:
     parser.add_argument("--short", type=float, default=10, help="seconds of the short memory run")
     parser.add_argument("--long", type=float, default=60, help="seconds of the long memory run")
     parser.add_argument("--rss-runs", type=int, default=3, help="memory runs per length (median)")
+    parser.add_argument("--code", type=Path, action="append", default=None,
+                        help="a code tree whose stage work to time (repeatable: side by side, the first is the base)")
+    parser.add_argument("--out", type=Path, default=None, help="also write the report as JSON here")
     args = parser.parse_args()
     overrides = {k: v for k, v in (("detector", args.detector), ("pose_model", args.pose_model)) if v}
-    params, opts = configured(overrides)
     media = Path(os.environ["DANCE3D_MEDIA"])
     one = media / "videos/dance_single_music_musepose.mp4"
+    if args.code:
+        with tempfile.TemporaryDirectory() as tmp:
+            clips = {"one_dancer": one, "five_people": five_people(media, Path(tmp) / "five_people.mp4", seconds=4)}
+            report = {"codes": [str(c.resolve()) for c in args.code], "runs": args.runs,
+                      "clips": compare_trees([c.resolve() for c in args.code], clips, overrides, args.runs)}
+        _save(report, args.out)
+        return
+    params, opts = configured(overrides)
     report = {"detector": params["detector"], "pose_model": params["pose_model"], "runs": args.runs}
     with tempfile.TemporaryDirectory() as tmp:
         five = five_people(media, Path(tmp) / "five_people.mp4", seconds=4)
@@ -173,7 +239,14 @@ def main() -> None:
         rss60 = statistics.median(peak_rss_child(long_, fps, overrides) for _ in range(args.rss_runs))
     report.update({f"peak_rss_{args.short:g}s_mib": round(rss10, 1), f"peak_rss_{args.long:g}s_mib": round(rss60, 1),
                    "rss_ratio_long_over_short": round(rss60 / rss10, 3)})
+    _save(report, args.out)
+
+
+def _save(report: dict, out: Path | None) -> None:
     print(json.dumps(report, indent=2))
+    if out:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps(report, indent=2) + "\n")
 
 
 if __name__ == "__main__":

@@ -1,12 +1,14 @@
-"""The 2D fast path on video: the detector every k-th frame (``pose2d.det_every``), boxes carried
-by the keypoints in between, against the detector on every frame (issue: real-time 2D).
+"""The 2D fast path on video: the models on keyframes only (``pose2d.fps``, the frames between
+interpolated) and the detector on every k-th posed frame (``pose2d.det_every``, boxes carried by
+the keypoints in between), against the models and the detector on every frame (issue: real-time 2D).
 
 For each clip and each configuration, side by side in one run (configurations alternate, medians
 of --runs for the time), the pose2d + track work of the stage is run and compared with the
-reference (``det_every: 1``, the rest of params.yaml's pose2d section):
+reference (``fps: 0, det_every: 1``, the rest of params.yaml's pose2d section):
 
 - ``fps``: frames per wall-second, and ``speed``: the reference's time over this one;
-- ``detected``: the share of frames the detector ran on (every k-th, and on demand);
+- ``posed``: the share of frames the models posed (keyframes); ``detected``: the share the
+  detector ran on (every k-th posed frame, and on demand);
 - ``people``: people found per frame (the reference's beside it);
 - ``oks``: mean OKS of each of the reference's people against the configuration's person matched
   to it in that frame (Hungarian on OKS; a reference person with no match counts 0). OKS as COCO
@@ -20,7 +22,7 @@ shared group clips (the trio, the duet, the first --linedance seconds of the lin
 pans). Images are not affected: a single image is always a detected frame.
 
 Usage: DANCE3D_MODELS=../shared/models DANCE3D_MEDIA=../shared/media \\
-       python -m benchmarks.pose2d_fastpath [--config det_every=5 --config det_every=5,redetect_joints=0 ...]
+       python -m benchmarks.pose2d_fastpath [--config fps=12,det_every=5 --config det_every=5 ...]
        [--runs 1] [--out r.json]
 """
 
@@ -44,6 +46,9 @@ from pipeline.pose.pose2d import collect_poses, estimate_segment
 from pipeline.pose.tracking import COCO_SIGMAS, assign_tracks
 
 VISIBLE = 0.3
+REFERENCE = "fps=0,det_every=1"  # the models pose every frame, the detector runs on every frame
+DEFAULT = "params.yaml"  # the configuration as params.yaml has it
+DEFAULT_CONFIGS = [DEFAULT, "fps=8", "fps=12", "fps=0,det_every=5", "fps=8,det_every=2,carry_framed=0"]
 
 
 def oks(truth: np.ndarray, area: float, other: np.ndarray) -> float:
@@ -57,19 +62,22 @@ def oks(truth: np.ndarray, area: float, other: np.ndarray) -> float:
 
 
 def overrides(config: str) -> dict:
-    """``det_every=5,redetect_joints=0`` -> {"det_every": 5, "redetect_joints": 0}."""
+    """``det_every=5,redetect_joints=0`` -> {"det_every": 5, "redetect_joints": 0}; ``params.yaml`` -> {}."""
+    if config == DEFAULT:
+        return {}
     pairs = (item.split("=", 1) for item in config.split(",") if item)
     return {key.strip(): float(value) if "." in value else int(value) for key, value in pairs}
 
 
 def run(clip: Path, models, opts) -> tuple[float, dict]:
     fps = probe(clip).fps
-    detected = [0, 0]
+    detected = [0, 0, 0]  # frames detected, posed, seen
 
     def counted(frames):
         for frame in frames:
             detected[0] += frame.detected
-            detected[1] += 1
+            detected[1] += not frame.interpolated
+            detected[2] += 1
             yield frame
 
     start = time.perf_counter()
@@ -77,7 +85,8 @@ def run(clip: Path, models, opts) -> tuple[float, dict]:
     tracks = assign_tracks(poses.frame, poses.box, poses.keypoints)
     return time.perf_counter() - start, {"frame": poses.frame, "box": poses.box, "kp": poses.keypoints,
                                          "track": tracks, "frames": frames,
-                                         "detected": detected[0] / max(detected[1], 1)}
+                                         "detected": detected[0] / max(detected[2], 1),
+                                         "posed": detected[1] / max(detected[2], 1)}
 
 
 def compare(ref: dict, run_: dict) -> dict:
@@ -122,20 +131,23 @@ def clips(media: Path, tmp: Path, linedance: float) -> list[Path]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--config", action="append", default=None,
-                        help="pose2d overrides, key=value[,key=value] (default: det_every=3, 5 and 10); "
-                             "the reference is det_every=1")
+                        help=f"pose2d overrides, key=value[,key=value], or {DEFAULT} (default: "
+                             + ", ".join(DEFAULT_CONFIGS) + f"); the reference is {REFERENCE}")
     parser.add_argument("--runs", type=int, default=1)
     parser.add_argument("--linedance", type=float, default=12.0, help="seconds of the line dance")
+    parser.add_argument("--clip", default="", help="only the clips whose file name contains this")
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
-    names = ["det_every=1"] + [c for c in (args.config or ["det_every=3", "det_every=5", "det_every=10"])
-                               if c != "det_every=1"]
-    configs = {name: configured({"det_every": 1, **overrides(name)}) for name in names}
+    names = [REFERENCE] + [c for c in (args.config or DEFAULT_CONFIGS) if c != REFERENCE]
+    configs = {name: configured({**overrides(REFERENCE), **overrides(name)} if name != DEFAULT else {})
+               for name in names}
     ref = names[0]
     models = load_models(configs[ref][0])
     report: dict = {"params": configs[ref][0], "clips": {}}
     with tempfile.TemporaryDirectory() as tmp:
         for clip in clips(Path(os.environ["DANCE3D_MEDIA"]), Path(tmp), args.linedance):
+            if args.clip not in clip.name:
+                continue
             times: dict[str, list[float]] = {k: [] for k in names}
             results: dict[str, dict] = {}
             run(clip, models, configs[ref][1])  # warm up
@@ -150,7 +162,8 @@ def main() -> None:
                 t = statistics.median(times[k])
                 rows[k] = {"fps": round(results[k]["frames"] / t, 1), "speed": round(ref_time / t, 2),
                            "real_time": round(results[k]["frames"] / t / info.fps, 2),
-                           "detected": round(results[k]["detected"], 3), **compare(results[ref], results[k])}
+                           "detected": round(results[k]["detected"], 3), "posed": round(results[k]["posed"], 3),
+                           **compare(results[ref], results[k])}
             report["clips"][f"{clip.name} ({info.width}x{info.height}, {results[ref]['frames']} frames)"] = rows
             print(json.dumps({clip.name: rows}), flush=True)
     text = json.dumps(report, indent=2)
