@@ -9,6 +9,7 @@ from pathlib import Path
 import pipeline.ingest.media
 import pipeline.pose.keyframes
 import pipeline.pose.models.detector
+import pipeline.pose.models.normalize
 import pipeline.pose.models.pose
 import pipeline.pose.pose2d
 import pipeline.pose.pose2dfile
@@ -25,7 +26,8 @@ from pipeline.pose.pose2dfile import SCHEMA_VERSION, SegmentInfo
 
 log = logging.getLogger("dance3d.pose2d")
 CODE = code_fingerprint(pipeline.pose.pose2d, pipeline.pose.pose2dfile, pipeline.pose.models.detector,
-                        pipeline.pose.models.pose, pipeline.pose.keyframes, pipeline.ingest.media,
+                        pipeline.pose.models.pose, pipeline.pose.models.normalize, pipeline.pose.keyframes,
+                        pipeline.ingest.media,
                         pipeline.ingest.segmentvideo)
 
 

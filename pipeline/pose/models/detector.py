@@ -7,9 +7,12 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from pipeline.pose.models.normalize import channel_table, to_tensor
+
 # mmdet's test pipeline for RTMDet: BGR input, these means and stds in B, G, R order.
 MEAN_BGR = np.array([103.53, 116.28, 123.675], np.float32)
 STD_BGR = np.array([57.375, 57.12, 58.395], np.float32)
+LETTERBOX_TABLE = channel_table(MEAN_BGR, STD_BGR)
 PAD_VALUE = 114
 
 
@@ -38,8 +41,7 @@ def letterbox(image: np.ndarray, size: tuple[int, int] = (320, 320)) -> Letterbo
     new_w, new_h = int(round(w * scale)), int(round(h * scale))
     canvas = np.full((height, width, 3), PAD_VALUE, np.uint8)
     canvas[:new_h, :new_w] = cv2.resize(image, (new_w, new_h), interpolation=cv2.INTER_LINEAR)
-    tensor = (canvas.astype(np.float32) - MEAN_BGR) / STD_BGR
-    return Letterbox(np.ascontiguousarray(tensor.transpose(2, 0, 1)[None]), scale, w, h)
+    return Letterbox(to_tensor(canvas, LETTERBOX_TABLE), scale, w, h)
 
 
 def decode_dets(dets: np.ndarray, box: Letterbox, score_threshold: float) -> Detections:

@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 
 from pipeline.pose.models.batching import run_batched
+from pipeline.pose.models.normalize import channel_table, to_tensor
 
 COCO17 = (
     "nose", "left_eye", "right_eye", "left_ear", "right_ear", "left_shoulder", "right_shoulder",
@@ -161,6 +162,7 @@ def decode_heatmaps(heatmaps: np.ndarray, stride: float) -> np.ndarray:
 
 IMAGENET_MEAN = np.array([0.485, 0.456, 0.406], np.float32)
 IMAGENET_STD = np.array([0.229, 0.224, 0.225], np.float32)
+TINYPOSE_TABLE = channel_table(IMAGENET_MEAN, IMAGENET_STD, divide=255.0, swap_rb=True)
 
 
 class TinyPose:
@@ -180,9 +182,8 @@ class TinyPose:
             return PoseBatch.body_only(out)
         w, h = self.size
         matrices = [crop_transform(box, w, h, self.padding) for box in boxes]
-        crops = np.stack([cv2.cvtColor(warp(image, m, w, h), cv2.COLOR_BGR2RGB) for m in matrices])
-        tensors = ((crops.astype(np.float32) / 255.0 - IMAGENET_MEAN) / IMAGENET_STD).transpose(0, 3, 1, 2)
-        heatmaps = run_batched(self.session, self.heatmap_name, self.input_name, np.ascontiguousarray(tensors))
+        tensors = to_tensor(np.stack([warp(image, m, w, h) for m in matrices]), TINYPOSE_TABLE, swap_rb=True)
+        heatmaps = run_batched(self.session, self.heatmap_name, self.input_name, tensors)
         decoded = decode_heatmaps(heatmaps, stride=w / heatmaps.shape[-1])
         for i, m in enumerate(matrices):
             out[i, :, :2] = to_image(decoded[i, :, :2], m)
