@@ -126,3 +126,15 @@ def test_tinypose_ships_in_the_package_with_its_licence_and_is_found_without_any
     # A copy in DANCE3D_MODELS comes first (a user may put another build there).
     (empty / spec.file).write_bytes(path.read_bytes())
     assert resolve_model("tinypose", tmp_path) == empty / spec.file
+
+
+def test_a_wheel_route_is_logged_as_the_wheel_it_is_not_as_a_mirror_address(tmp_path: Path, monkeypatch,
+                                                                              caplog) -> None:
+    from pipeline.pose.models import fetch
+
+    monkeypatch.setenv(MIRROR_ENV, "http://127.0.0.1:9")  # a mirror serves URLs; pip routes go to the registry
+    monkeypatch.delenv("DANCE3D_MODELS", raising=False)
+    monkeypatch.setattr(fetch, "fetch_route", lambda route, target: (_ for _ in ()).throw(FetchError("stop")))
+    with caplog.at_level("INFO"), pytest.raises(FetchError):
+        fetch_model("blazepose-full", tmp_path / "models", force=True)
+    assert "fetching pip:mediapipe==0.10.21" in caplog.text and "127.0.0.1:9" not in caplog.text

