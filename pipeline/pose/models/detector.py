@@ -7,12 +7,12 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from pipeline.pose.models.normalize import channel_table, to_tensor
+from pipeline.pose.models.normalize import IMAGENET, InputTable
 
 # mmdet's test pipeline for RTMDet: BGR input, these means and stds in B, G, R order.
 MEAN_BGR = np.array([103.53, 116.28, 123.675], np.float32)
 STD_BGR = np.array([57.375, 57.12, 58.395], np.float32)
-LETTERBOX_TABLE = channel_table(MEAN_BGR, STD_BGR)
+RTMDET_INPUT = InputTable(tuple(MEAN_BGR), tuple(STD_BGR))
 PAD_VALUE = 114
 
 
@@ -41,7 +41,7 @@ def letterbox(image: np.ndarray, size: tuple[int, int] = (320, 320)) -> Letterbo
     new_w, new_h = int(round(w * scale)), int(round(h * scale))
     canvas = np.full((height, width, 3), PAD_VALUE, np.uint8)
     canvas[:new_h, :new_w] = cv2.resize(image, (new_w, new_h), interpolation=cv2.INTER_LINEAR)
-    return Letterbox(to_tensor(canvas, LETTERBOX_TABLE), scale, w, h)
+    return Letterbox(RTMDET_INPUT(canvas), scale, w, h)
 
 
 def decode_dets(dets: np.ndarray, box: Letterbox, score_threshold: float) -> Detections:
@@ -82,8 +82,6 @@ class RTMDetDetector:
         return self.infer(self.preprocess(image))
 
 
-IMAGENET_MEAN_RGB = np.array([0.485, 0.456, 0.406], np.float32)
-IMAGENET_STD_RGB = np.array([0.229, 0.224, 0.225], np.float32)
 
 
 def nms(boxes: np.ndarray, scores: np.ndarray, iou: float) -> np.ndarray:
@@ -113,9 +111,7 @@ class PicoDetDetector:
     def preprocess(self, image: np.ndarray) -> tuple[np.ndarray, int, int]:
         h, w = image.shape[:2]
         width, height = self.input_size
-        rgb = cv2.cvtColor(cv2.resize(image, (width, height), interpolation=cv2.INTER_LINEAR), cv2.COLOR_BGR2RGB)
-        tensor = ((rgb.astype(np.float32) / 255.0 - IMAGENET_MEAN_RGB) / IMAGENET_STD_RGB).transpose(2, 0, 1)[None]
-        return np.ascontiguousarray(tensor), w, h
+        return IMAGENET(cv2.resize(image, (width, height), interpolation=cv2.INTER_LINEAR)), w, h
 
     def detect(self, image: np.ndarray) -> Detections:
         return self.infer(self.preprocess(image))

@@ -4,24 +4,40 @@ OpenCV ``LUT`` pass instead of three float passes over it (the same float32 valu
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import cv2
 import numpy as np
 
-
-def channel_table(mean: np.ndarray, std: np.ndarray, divide: float = 1.0, swap_rb: bool = False) -> np.ndarray:
-    """The (256 x 1 x 3) float32 table for pictures in BGR order; ``mean`` and ``std`` are in the
-    model's channel order, RGB when ``swap_rb``."""
-    values = np.arange(256, dtype=np.float32)[:, None] / np.float32(divide)
-    mean, std = np.asarray(mean, np.float32), np.asarray(std, np.float32)
-    if swap_rb:
-        mean, std = mean[::-1], std[::-1]
-    return ((values - mean[None, :]) / std[None, :]).astype(np.float32).reshape(256, 1, 3)
+IMAGENET_MEAN_RGB = np.array([0.485, 0.456, 0.406], np.float32)  # of pictures scaled to [0, 1]
+IMAGENET_STD_RGB = np.array([0.229, 0.224, 0.225], np.float32)
 
 
-def to_tensor(pictures: np.ndarray, table: np.ndarray, swap_rb: bool = False) -> np.ndarray:
-    """(N x H x W x 3) or (H x W x 3) uint8 BGR pictures -> contiguous float32 (N x 3 x H x W) through
-    ``table`` (:func:`channel_table`), channels reversed to RGB when ``swap_rb``."""
-    pictures = np.asarray(pictures, np.uint8)
-    batch = pictures[None] if pictures.ndim == 3 else pictures
-    out = np.stack([cv2.LUT(p, table) for p in batch]).transpose(0, 3, 1, 2)
-    return np.ascontiguousarray(out[:, ::-1] if swap_rb else out)
+@dataclass(frozen=True)
+class InputTable:
+    """How a model wants its input: ``(v / divide - mean) / std`` per channel, in ``mean``'s and
+    ``std``'s channel order (RGB when ``rgb``, else BGR); pictures come in BGR."""
+
+    mean: tuple[float, ...]
+    std: tuple[float, ...]
+    divide: float = 1.0
+    rgb: bool = False
+    table: np.ndarray = field(init=False, repr=False, compare=False)  # 256 x 1 x 3, the pictures' BGR order
+
+    def __post_init__(self) -> None:
+        values = np.arange(256, dtype=np.float32)[:, None] / np.float32(self.divide)
+        mean, std = np.asarray(self.mean, np.float32), np.asarray(self.std, np.float32)
+        if self.rgb:
+            mean, std = mean[::-1], std[::-1]
+        table = ((values - mean[None, :]) / std[None, :]).astype(np.float32).reshape(256, 1, 3)
+        object.__setattr__(self, "table", table)
+
+    def __call__(self, pictures: np.ndarray) -> np.ndarray:
+        """(N x H x W x 3) or (H x W x 3) uint8 BGR pictures -> contiguous float32 (N x 3 x H x W)."""
+        pictures = np.asarray(pictures, np.uint8)
+        batch = pictures[None] if pictures.ndim == 3 else pictures
+        out = np.stack([cv2.LUT(p, self.table) for p in batch]).transpose(0, 3, 1, 2)
+        return np.ascontiguousarray(out[:, ::-1] if self.rgb else out)
+
+
+IMAGENET = InputTable(tuple(IMAGENET_MEAN_RGB), tuple(IMAGENET_STD_RGB), divide=255.0, rgb=True)

@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 
 from pipeline.pose.models.batching import run_batched
-from pipeline.pose.models.normalize import channel_table, to_tensor
+from pipeline.pose.models.normalize import IMAGENET
 
 COCO17 = (
     "nose", "left_eye", "right_eye", "left_ear", "right_ear", "left_shoulder", "right_shoulder",
@@ -160,9 +160,6 @@ def decode_heatmaps(heatmaps: np.ndarray, stride: float) -> np.ndarray:
     return np.stack([x * stride + (stride - 1) / 2, y * stride + (stride - 1) / 2, score], -1).astype(np.float32)
 
 
-IMAGENET_MEAN = np.array([0.485, 0.456, 0.406], np.float32)
-IMAGENET_STD = np.array([0.229, 0.224, 0.225], np.float32)
-TINYPOSE_TABLE = channel_table(IMAGENET_MEAN, IMAGENET_STD, divide=255.0, swap_rb=True)
 
 
 class TinyPose:
@@ -182,7 +179,7 @@ class TinyPose:
             return PoseBatch.body_only(out)
         w, h = self.size
         matrices = [crop_transform(box, w, h, self.padding) for box in boxes]
-        tensors = to_tensor(np.stack([warp(image, m, w, h) for m in matrices]), TINYPOSE_TABLE, swap_rb=True)
+        tensors = IMAGENET(np.stack([warp(image, m, w, h) for m in matrices]))
         heatmaps = run_batched(self.session, self.heatmap_name, self.input_name, tensors)
         decoded = decode_heatmaps(heatmaps, stride=w / heatmaps.shape[-1])
         for i, m in enumerate(matrices):
