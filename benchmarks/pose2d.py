@@ -153,24 +153,18 @@ def measure(clip: Path, models, opts: Pose2dOptions, runs: int) -> dict:
             "a_wall_over_c_model_time": round(ma / mc, 2)}
 
 
+# The tree's own stage work (its benchmarks/pose2d.py, so its own params.yaml), as peak_rss_child runs it.
 TREE_RUN = """
 import json, sys, time
 from pathlib import Path
 sys.path.insert(0, sys.argv[1])
-from pipeline.core.params import load_params, stage_params
-from pipeline.pose.pose2d import Pose2dOptions, collect_poses, estimate_segment, load_pose_models, model_files
-from pipeline.pose.tracking import assign_tracks
-root, clip, fps = Path(sys.argv[1]), Path(sys.argv[2]), float(sys.argv[3])
-params = {**stage_params(load_params(root / "params.yaml"), "pose2d"), **json.loads(sys.argv[4])}
-opts = Pose2dOptions.from_params(params)
-models = load_pose_models(model_files(root, params)[0])
-def work():
-    poses, frames = collect_poses(estimate_segment(clip, fps, models.detector, models.pose, opts))
-    assign_tracks(poses.frame, poses.box, poses.keypoints)
-    return frames
-work()  # warm up
+from benchmarks.pose2d import configured, load_models, stage_work
+params, opts = configured(json.loads(sys.argv[4]))
+models = load_models(params)
+clip, fps = Path(sys.argv[2]), float(sys.argv[3])
+stage_work(clip, fps, models, opts)  # warm up
 t0 = time.perf_counter()
-frames = work()
+frames = stage_work(clip, fps, models, opts)
 print(json.dumps({"seconds": time.perf_counter() - t0, "frames": frames}))
 """
 
