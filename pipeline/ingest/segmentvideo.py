@@ -83,10 +83,7 @@ class SegmentVideo:
                         continue  # before the segment
                     # Each slot whose window ends at or before this frame is shown by the held frame.
                     while held is not None and tau >= emitted / float(self.rate) + half:
-                        image = None
-                        if keep is None or keep(emitted):
-                            held = self._convert(held)
-                            image = held[1]
+                        held, image = self._shown(held, emitted, keep)
                         yield Frame(emitted, float(emitted / self.rate), image)
                         emitted += 1
                         if emitted == self.frames:
@@ -99,12 +96,16 @@ class SegmentVideo:
         if emitted < self.frames:
             log.debug("%s: source ends %d frames early; its last frame is held", self.source, self.frames - emitted)
         while emitted < self.frames:
-            image = None
-            if keep is None or keep(emitted):
-                held = self._convert(held)
-                image = held[1]
+            held, image = self._shown(held, emitted, keep)
             yield Frame(emitted, float(emitted / self.rate), image)
             emitted += 1
+
+    def _shown(self, held: tuple, k: int, keep: Callable[[int], bool] | None) -> tuple:
+        """``held`` (converted once, when a kept frame k shows it) and frame k's picture, or None."""
+        if keep is not None and not keep(k):
+            return held, None
+        held = self._convert(held)
+        return held, held[1]
 
     def _convert(self, held: tuple) -> tuple:
         frame, image = held
