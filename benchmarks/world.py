@@ -16,7 +16,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from pipeline.motion.world.evaluate import evaluate_folder, format_report
+from pipeline.motion.world.evaluate import PoseInput, evaluate_folder, format_report
 from stages.train_contact import SHIPPED as CONTACT
 from stages.train_lifter import SHIPPED as LIFTER
 
@@ -31,8 +31,8 @@ def main() -> None:
                         help="share of the 2D noise new on every frame (the rest drifts; default 1)")
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/world.json"))
     args = parser.parse_args()
-    run_and_save(lambda: evaluate_folder(LIFTER, CONTACT, args.mocap, seconds=args.seconds, pose_fps=args.pose_fps,
-                                         noise=not args.clean_2d, frame_noise=args.frame_noise),
+    pose_input = PoseInput(not args.clean_2d, args.frame_noise, args.pose_fps)
+    run_and_save(lambda: evaluate_folder(LIFTER, CONTACT, args.mocap, seconds=args.seconds, pose_input=pose_input),
                  format_report, args.out)
 
 

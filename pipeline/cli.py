@@ -304,12 +304,12 @@ def _eval(root: Path, args: argparse.Namespace) -> int:
             result = evaluate_onnx(model, args.mocap, heldout_only=not args.all, flip=not args.no_flip,
                                    max_seconds=args.seconds)
         elif args.what == "world":
-            from pipeline.motion.world.evaluate import evaluate_folder
+            from pipeline.motion.world.evaluate import PoseInput, evaluate_folder
             from pipeline.motion.world.evaluate import format_report as format_table
 
             model, contact = _lift_models(root, args)
             result = evaluate_folder(model, contact, args.mocap, heldout_only=not args.all, seconds=args.seconds,
-                                     pose_fps=args.pose_fps, noise=not args.clean_2d, frame_noise=args.frame_noise)
+                                     pose_input=PoseInput(not args.clean_2d, args.frame_noise, args.pose_fps))
         elif args.what == "group":
             from pipeline.motion.world.group_eval import evaluate_group_folder
             from pipeline.motion.world.group_eval import format_report as format_table

@@ -67,6 +67,27 @@ SLIDE_STILL = 0.01 * VIDEO_FPS  # m/s: WHAM's "true foot moves < 1 cm per frame"
 FEET_SEEN = 0.9  # a run "keeps the feet in view" when this share of heel and toe points lies inside the image
 
 
+@dataclass(frozen=True)
+class PoseInput:
+    """How the protocol makes the 2D the lifter sees from a filmed sequence: the pose-model noise
+    (``noise``; ``frame_noise`` of its variance new on every frame, the rest drifting, as in
+    ``add_pose_noise``), then keyframes at ``pose_fps`` as the pose2d stage poses them (0: every frame)."""
+
+    noise: bool = True
+    frame_noise: float = 1.0
+    pose_fps: float = 0.0
+
+    def keypoints(self, xy: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """(T x J x 2) pixels -> (T x J x 3) keypoints with score 1."""
+        xy = add_pose_noise(xy, rng, frame_share=self.frame_noise) if self.noise else xy
+        keypoints = np.concatenate([xy, np.ones(xy.shape[:2] + (1,))], -1)
+        return drawn_between(keypoints, keyframe_step(VIDEO_FPS, self.pose_fps))
+
+    def describe(self) -> dict:
+        return {"noisy_2d": self.noise, "frame_noise": self.frame_noise, "pose_fps": self.pose_fps,
+                "pose_step": keyframe_step(VIDEO_FPS, self.pose_fps)}
+
+
 def similarity(source: np.ndarray, target: np.ndarray, scale: bool = True) -> tuple[float, np.ndarray, np.ndarray]:
     """s, R, t minimising |s R x + t - y| over point sets (N x 3), Umeyama."""
     mu_x, mu_y = source.mean(0), target.mean(0)
@@ -182,19 +203,14 @@ def at_corpus_rate(lifted, lamb: float = 1.0, clip_id: str = "run", track_id: in
 
 
 def film_and_ground(models: LiftModels, seq: MocapSequence, camera: Camera, rng: np.random.Generator,
-                    lamb: float = 1.0, pose_fps: float = 0.0, noise: bool = True,
-                    frame_noise: float = 1.0) -> dict[str, dict]:
-    """One run: ``seq`` (at ``VIDEO_FPS``) filmed by ``camera`` with noisy 2D (``noise``; ``frame_noise``
-    of its variance new on every frame, the rest drifting: ``add_pose_noise``), posed on keyframes at
-    ``pose_fps`` as the pose2d stage would (0: every frame), through the corpus's path, scored with
-    the contact model (``learned``) and without (``baseline``)."""
+                    lamb: float = 1.0, pose_input: PoseInput = PoseInput()) -> dict[str, dict]:
+    """One run: ``seq`` (at ``VIDEO_FPS``) filmed by ``camera``, its 2D made as ``pose_input`` says,
+    through the corpus's path, scored with the contact model (``learned``) and without (``baseline``)."""
     body = np.concatenate([seq.h36m, seq.feet], 1)
     xy, _ = view(body, np.concatenate([seq.coco, seq.feet], 1), camera)
     feet = xy[:, 17:]
     in_frame = float(((feet >= 0) & (feet <= [camera.width, camera.height])).all(-1).mean())
-    xy = add_pose_noise(xy, rng, frame_share=frame_noise) if noise else xy
-    keypoints = np.concatenate([xy, np.ones(xy.shape[:2] + (1,))], -1)
-    keypoints = drawn_between(keypoints, keyframe_step(VIDEO_FPS, pose_fps))
+    keypoints = pose_input.keypoints(xy, rng)
     (lifted,) = lift_clips(models, [keypoints[:, :17]], [keypoints[:, 17:]], camera.width, camera.height,
                            VIDEO_FPS, min_score=0.3, flip=True)
     clip = at_corpus_rate(lifted, lamb)
@@ -212,8 +228,7 @@ def film_and_ground(models: LiftModels, seq: MocapSequence, camera: Camera, rng:
 
 
 def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: float = 20.0,
-                   seed: int = 0, progress=None, pose_fps: float = 0.0, noise: bool = True,
-                   frame_noise: float = 1.0) -> dict:
+                   seed: int = 0, progress=None, pose_input: PoseInput = PoseInput()) -> dict:
     """Medians per source and over all, for each variant (``learned``, ``baseline``), and by pitch."""
     rng = np.random.default_rng(seed)
     runs: list[dict] = []
@@ -222,8 +237,7 @@ def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: 
         if seq.frames < 2 * VIDEO_FPS:
             continue
         for camera in CAMERAS:
-            for variant, row in film_and_ground(models, seq, camera, rng, pose_fps=pose_fps, noise=noise,
-                                                frame_noise=frame_noise).items():
+            for variant, row in film_and_ground(models, seq, camera, rng, pose_input=pose_input).items():
                 runs.append({"source": seq.source, "sequence": seq.name, "pitch": camera.pitch_deg,
                              "variant": variant, **row})
             if progress:
@@ -235,8 +249,7 @@ def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: 
 
     result: dict = {"protocol": {"sequences": len({r["sequence"] for r in runs}), "cameras": len(CAMERAS),
                                  "seconds_each": seconds, "video_fps": VIDEO_FPS, "corpus_fps": CORPUS_FPS,
-                                 "pose_fps": pose_fps, "pose_step": keyframe_step(VIDEO_FPS, pose_fps),
-                                 "noisy_2d": noise, "frame_noise": frame_noise}}
+                                 **pose_input.describe()}}
     for variant in dict.fromkeys(r["variant"] for r in runs):
         rows = [r for r in runs if r["variant"] == variant]
         result[variant] = {"all": medians(rows),
@@ -252,8 +265,8 @@ def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: 
 
 
 def evaluate_folder(lifter: Path, contact: Path | None, mocap: Path, *, heldout_only: bool = True,
-                    seconds: float = 20.0, threads: int = 2, progress=None, pose_fps: float = 0.0,
-                    noise: bool = True, frame_noise: float = 1.0) -> dict:
+                    seconds: float = 20.0, threads: int = 2, progress=None,
+                    pose_input: PoseInput = PoseInput()) -> dict:
     """``dance3d eval world`` on a folder ``load_folder`` reads: a folder of the known sources is cut
     to the train_lifter split's held-out sequences; a folder of your own capture is used whole."""
     from pipeline.motion.lifting.infer import load_models
@@ -269,8 +282,7 @@ def evaluate_folder(lifter: Path, contact: Path | None, mocap: Path, *, heldout_
         if path is not None and not Path(path).is_file():
             raise InputError(path, "no such model")
     models = load_models(str(lifter), str(contact) if contact else "", threads)
-    result = evaluate_world(models, sequences, seconds, progress=progress, pose_fps=pose_fps, noise=noise,
-                            frame_noise=frame_noise)
+    result = evaluate_world(models, sequences, seconds, progress=progress, pose_input=pose_input)
     result["protocol"].update(lifter=str(lifter), contact_model=str(contact) if contact else "none",
                               mocap=str(mocap), split="held-out sequences of the train_lifter split" if held
                               else "every sequence")
