@@ -62,9 +62,7 @@ def oks(truth: np.ndarray, area: float, other: np.ndarray) -> float:
 
 
 def overrides(config: str) -> dict:
-    """``det_every=5,redetect_joints=0`` -> {"det_every": 5, "redetect_joints": 0}; ``params.yaml`` -> {}."""
-    if config == DEFAULT:
-        return {}
+    """``det_every=5,redetect_joints=0`` -> {"det_every": 5, "redetect_joints": 0}."""
     pairs = (item.split("=", 1) for item in config.split(",") if item)
     return {key.strip(): float(value) if "." in value else int(value) for key, value in pairs}
 
