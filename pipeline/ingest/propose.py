@@ -1,7 +1,7 @@
 """Propose the dance segments of an untrimmed video: where a shot has music and moving people.
 
 Three cues, each on a one-second grid of the video's clock (from its first frame):
-- shots: ffmpeg's ``scdet`` scene-change filter (hard cuts);
+- shots: ffmpeg's ``scdet`` scene-change filter (hard cuts), fed the frames the people cues decode;
 - music: sound that is loud enough, mostly harmonic (HPSS) and without the pauses of speech
   (the share of low-energy frames, a classic speech/music cue);
 - people moving: RTMDet + the body pose model on a few frames per second; motion is the
@@ -16,17 +16,19 @@ These are heuristics: ``dance3d eval segments`` measures them against human segm
 from __future__ import annotations
 
 import logging
-import re
 import subprocess
 from dataclasses import asdict, dataclass, field
 from fractions import Fraction
 from pathlib import Path
+from typing import Callable
 
+import av
 import numpy as np
 
 from pipeline.core.errors import MediaError
 from pipeline.ingest.media import VideoInfo, ffmpeg_exe
 from pipeline.ingest.segmentvideo import SegmentVideo
+from pipeline.ingest.shots import CutFinder
 from pipeline.ingest.trim import output_size
 
 log = logging.getLogger(__name__)
@@ -103,21 +105,6 @@ class Proposals:
 
 # --- cues --------------------------------------------------------------------------------
 
-_SCD = re.compile(r"lavfi\.scd\.score:\s*([\d.]+),\s*lavfi\.scd\.time:\s*([\d.]+)")
-
-
-def shot_cuts(path: Path, threshold: float) -> list[float]:
-    """Hard cuts (seconds from the first frame) found by ffmpeg's scdet on a small copy of the picture."""
-    cmd = [ffmpeg_exe(), "-hide_banner", "-nostdin", "-i", str(path), "-map", "0:v:0", "-an",
-           "-vf", f"setpts=PTS-STARTPTS,scale=160:-2,scdet=threshold={threshold:g}:sc_pass=0", "-f", "null", "-"]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        tail = [ln for ln in proc.stderr.strip().splitlines() if ln.strip()][-2:]
-        raise MediaError(path, "scene detection failed: " + " | ".join(tail))
-    cuts = sorted({round(float(t), 3) for score, t in _SCD.findall(proc.stderr) if float(score) >= threshold})
-    return [t for t in cuts if t >= 0.5]  # scdet reports the first frames against black
-
-
 def load_audio(path: Path, audio_stream: int | None) -> np.ndarray:
     """Mono float32 at AUDIO_RATE (empty without an audio stream)."""
     if audio_stream is None:
@@ -155,37 +142,57 @@ def audio_cues(y: np.ndarray, seconds: int) -> tuple[np.ndarray, np.ndarray, np.
     return loud, harmonic, low
 
 
-def people_cues(video: SegmentVideo, models, opts: ProposeOptions, seconds: int, cuts: list[float] = (),
-                pose_opts=None) -> tuple[np.ndarray, np.ndarray]:
+@dataclass(frozen=True)
+class Sample:
+    """The people of one sampled frame who are tall enough to count."""
+
+    time: float
+    boxes: np.ndarray      # Nx4
+    keypoints: np.ndarray  # Nx17x3
+    heights: np.ndarray    # N, box heights in pixels
+
+
+def sample_people(video: SegmentVideo, models, opts: ProposeOptions, pose_opts=None,
+                  tap: Callable[[av.VideoFrame], None] | None = None) -> list[Sample]:
+    """RTMDet and the body pose model on every frame of ``video`` (the sample view); ``tap`` sees
+    every decoded source frame (the cut finder). ``models``: pose2d's PoseModels (the body model
+    is enough); ``pose_opts``: pose2d's people rules."""
+    from pipeline.pose.models.pose import BodyAndFeet
+    from pipeline.pose.pose2d import Pose2dOptions, find_people, lift_dark
+
+    pose_opts = pose_opts or Pose2dOptions()
+    body = models.pose.body if isinstance(models.pose, BodyAndFeet) else models.pose
+    samples = []
+    for frame in video.iter_frames(tap=tap):
+        image = lift_dark(frame.image, pose_opts.dark_mean)
+        dets = models.detector.infer(models.detector.preprocess(image))
+        found, poses = find_people(image, dets, body, pose_opts)
+        heights = found.boxes[:, 3] - found.boxes[:, 1]
+        tall = heights >= opts.min_person_height * video.height
+        samples.append(Sample(frame.time, found.boxes[tall], poses.keypoints[tall], heights[tall]))
+    return samples
+
+
+def people_cues(samples: list[Sample], seconds: int, cuts: list[float] = ()) -> tuple[np.ndarray, np.ndarray]:
     """Per second: the most people in one sample, and the motion of the most moving person.
 
     Motion is the spread over time (a 2 s window) of each joint relative to the hips, in body
     heights, the JOINT_QUANTILE-th percentile over joints (dance may move only the arms): a spread,
     not a frame difference, so a periodic dance sampled at its own period does not look still.
     People are followed by box overlap within a shot (``cuts`` end every track).
-    ``models``: pose2d's PoseModels (the body model is enough); ``pose_opts``: pose2d's people rules.
     """
-    from pipeline.pose.models.pose import BodyAndFeet
-    from pipeline.pose.pose2d import Pose2dOptions, find_people, lift_dark
     from pipeline.pose.tracking import iou_matrix
 
-    pose_opts = pose_opts or Pose2dOptions()
-    body = models.pose.body if isinstance(models.pose, BodyAndFeet) else models.pose
     people = np.zeros(seconds)
-    samples: dict[int, list[tuple[float, np.ndarray, np.ndarray]]] = {}  # track -> (time, joints, confident)
+    tracks: dict[int, list[tuple[float, np.ndarray, np.ndarray]]] = {}  # track -> (time, joints, confident)
     previous_boxes, previous_ids, next_id = np.zeros((0, 4)), [], 0
     cut_times = sorted(cuts)
-    for frame in video.iter_frames():
-        if cut_times and frame.time >= cut_times[0]:  # a new shot: nobody carries over
-            cut_times = [c for c in cut_times if c > frame.time]
+    for sample in samples:
+        if cut_times and sample.time >= cut_times[0]:  # a new shot: nobody carries over
+            cut_times = [c for c in cut_times if c > sample.time]
             previous_boxes, previous_ids = np.zeros((0, 4)), []
-        image = lift_dark(frame.image, pose_opts.dark_mean)
-        dets = models.detector.infer(models.detector.preprocess(image))
-        found, poses = find_people(image, dets, body, pose_opts)
-        heights = found.boxes[:, 3] - found.boxes[:, 1]
-        tall = heights >= opts.min_person_height * video.height
-        boxes, keypoints, heights = found.boxes[tall], poses.keypoints[tall], heights[tall]
-        k = min(seconds - 1, int(frame.time))
+        boxes = sample.boxes
+        k = min(seconds - 1, int(sample.time))
         people[k] = max(people[k], len(boxes))
         iou = iou_matrix(boxes, previous_boxes)
         ids = []
@@ -196,11 +203,11 @@ def people_cues(video: SegmentVideo, models, opts: ProposeOptions, seconds: int,
             else:
                 ids.append(next_id)
                 next_id += 1
-            samples.setdefault(ids[-1], []).append(
-                (frame.time, _body_frame(keypoints[i], heights[i]), keypoints[i, :, 2] >= 0.3))
+            tracks.setdefault(ids[-1], []).append((sample.time, _body_frame(sample.keypoints[i], sample.heights[i]),
+                                                   sample.keypoints[i, :, 2] >= 0.3))
         previous_boxes, previous_ids = boxes, ids
     motion = np.full(seconds, np.nan)
-    for track in samples.values():
+    for track in tracks.values():
         times = np.array([t for t, _, _ in track])
         joints = np.stack([j for _, j, _ in track])
         seen = np.stack([c for _, _, c in track])
@@ -231,8 +238,10 @@ def sample_view(path: Path, info: VideoInfo, opts: ProposeOptions) -> SegmentVid
 def timeline(path: Path, info: VideoInfo, models, opts: ProposeOptions, pose_opts=None) -> Timeline:
     seconds = max(1, int(np.ceil(info.duration - 1e-6)))
     loud, harmonic, low = audio_cues(load_audio(path, info.audio_stream if info.has_audio else None), seconds)
-    cuts = shot_cuts(path, opts.cut_threshold)
-    people, motion = people_cues(sample_view(path, info, opts), models, opts, seconds, cuts, pose_opts)
+    finder = CutFinder(opts.cut_threshold)  # sees every frame the people cues decode: no second decode
+    samples = sample_people(sample_view(path, info, opts), models, opts, pose_opts, tap=finder.push)
+    cuts = finder.cuts()
+    people, motion = people_cues(samples, seconds, cuts)
     return Timeline(info.duration, cuts, loud, harmonic, low, people, motion)
 
 

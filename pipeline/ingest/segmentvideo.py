@@ -56,10 +56,11 @@ class SegmentVideo:
         """ffmpeg input options (before ``-i source``) that read this segment's span (accurate seek)."""
         return ["-ss", f"{self.start:.6f}", "-t", f"{self.duration:.6f}"]
 
-    def iter_frames(self, *, max_bad_packets: int = 25, keep: Callable[[int], bool] | None = None
-                    ) -> Iterator[Frame]:
+    def iter_frames(self, *, max_bad_packets: int = 25, keep: Callable[[int], bool] | None = None,
+                    tap: Callable[[av.VideoFrame], None] | None = None) -> Iterator[Frame]:
         """The segment's frames, in order: Frame(k, k / rate, upright BGR image of width x height);
-        with ``keep``, only the frames k it keeps are converted (the others' image is None)."""
+        with ``keep``, only the frames k it keeps are converted (the others' image is None);
+        ``tap`` sees every source frame decoded for the segment, in order (e.g. to find cuts)."""
         if self.frames < 1:
             return
         half = 0.5 / float(self.rate)
@@ -81,6 +82,8 @@ class SegmentVideo:
                     tau = float((pts - origin) * vs.time_base) - self.start
                     if tau < -half:
                         continue  # before the segment
+                    if tap is not None:
+                        tap(decoded)
                     # Each slot whose window ends at or before this frame is shown by the held frame.
                     while held is not None and tau >= emitted / float(self.rate) + half:
                         held, image = self._shown(held, emitted, keep)
