@@ -41,7 +41,7 @@ WINDOW = 4.0         # seconds of samples a motion spread is taken over
 
 @dataclass(frozen=True)
 class ProposeOptions:
-    sample_fps: float = 4.0         # frames per second the people cues look at
+    sample_fps: float = 3.0         # frames per second the people cues look at
     cut_threshold: float = 10.0     # scdet score (0-100) of a hard cut
     min_loudness_db: float = -50.0  # quieter seconds are silence
     min_harmonic: float = 0.4       # share of spectral energy that is harmonic (speech and noise: lower)
