@@ -8,9 +8,10 @@ own presentation time, so variable-frame-rate input keeps correct timestamps.
 
 from __future__ import annotations
 
+import functools
 import logging
 import subprocess
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from fractions import Fraction
 from pathlib import Path
 from typing import Callable, Iterator, Sequence
@@ -53,6 +54,12 @@ class Frame:
     index: int               # 0-based decode order
     time: float              # seconds from the stream's first frame
     image: np.ndarray | None  # HxWx3 uint8 BGR, upright (None: a frame the reader did not ask to see)
+    picture: Callable[[], np.ndarray] | None = field(default=None, repr=False, compare=False)
+    # ... whose image this converts on demand (the decoded frame is kept until the Frame is dropped)
+
+    def shown(self) -> np.ndarray:
+        """The frame's picture, converting it now if it was not asked for."""
+        return self.image if self.image is not None else self.picture()
 
 
 def ffmpeg_exe() -> str:
@@ -187,6 +194,10 @@ def _rotate(image: np.ndarray, rotation: int) -> np.ndarray:
     return np.ascontiguousarray(np.rot90(image, k)) if k else image
 
 
+def _bgr(frame: av.VideoFrame) -> np.ndarray:
+    return _rotate(frame.to_ndarray(format="bgr24"), int(frame.rotation or 0))
+
+
 def decode_video(container, stream, path: Path, max_bad_packets: int = 25) -> Iterator[av.VideoFrame]:
     """Decoded frames of ``stream`` in order. A corrupt packet is skipped with a warning; more
     than ``max_bad_packets`` of them raise MediaError. Demuxing errors propagate (av's)."""
@@ -225,9 +236,10 @@ def iter_frames(path: str | Path, *, max_bad_packets: int = 25,
             for frame in decode_video(container, vs, path, max_bad_packets):
                 pts = frame.pts if frame.pts is not None else start
                 time = float((pts - start) * vs.time_base)
-                image = (_rotate(frame.to_ndarray(format="bgr24"), int(frame.rotation or 0))
-                         if keep is None or keep(index) else None)
-                yield Frame(index, time, image)
+                if keep is None or keep(index):
+                    yield Frame(index, time, _bgr(frame))
+                else:
+                    yield Frame(index, time, None, functools.partial(_bgr, frame))
                 index += 1
         except av.error.FFmpegError as exc:
             raise MediaError(path, f"decoding stopped after {index} frames ({_reason(exc)})") from None

@@ -13,6 +13,7 @@ Audio is cut from the source the same way (``audio_seek``: ffmpeg input options 
 
 from __future__ import annotations
 
+import functools
 import logging
 from dataclasses import dataclass
 from fractions import Fraction
@@ -20,6 +21,7 @@ from pathlib import Path
 from typing import Callable, Iterator, Mapping
 
 import av
+import numpy as np
 
 from pipeline.core.errors import MediaError
 from pipeline.ingest.media import Frame, _open, _reason, _rotate, decode_video, video_streams
@@ -86,8 +88,8 @@ class SegmentVideo:
                         tap(decoded)
                     # Each slot whose window ends at or before this frame is shown by the held frame.
                     while held is not None and tau >= emitted / float(self.rate) + half:
-                        held, image = self._shown(held, emitted, keep)
-                        yield Frame(emitted, float(emitted / self.rate), image)
+                        held, frame = self._shown(held, emitted, keep)
+                        yield frame
                         emitted += 1
                         if emitted == self.frames:
                             return
@@ -99,16 +101,21 @@ class SegmentVideo:
         if emitted < self.frames:
             log.debug("%s: source ends %d frames early; its last frame is held", self.source, self.frames - emitted)
         while emitted < self.frames:
-            held, image = self._shown(held, emitted, keep)
-            yield Frame(emitted, float(emitted / self.rate), image)
+            held, frame = self._shown(held, emitted, keep)
+            yield frame
             emitted += 1
 
-    def _shown(self, held: tuple, k: int, keep: Callable[[int], bool] | None) -> tuple:
-        """``held`` (converted once, when a kept frame k shows it) and frame k's picture, or None."""
+    def _shown(self, held: tuple, k: int, keep: Callable[[int], bool] | None) -> tuple[tuple, Frame]:
+        """``held`` (converted once, when a kept frame k shows it) and frame k: its picture, or
+        (not kept) a way to convert it later."""
+        time = float(k / self.rate)
         if keep is not None and not keep(k):
-            return held, None
+            return held, Frame(k, time, None, functools.partial(self._picture, held))
         held = self._convert(held)
-        return held, held[1]
+        return held, Frame(k, time, held[1])
+
+    def _picture(self, held: tuple) -> np.ndarray:
+        return self._convert(held)[1]
 
     def _convert(self, held: tuple) -> tuple:
         frame, image = held

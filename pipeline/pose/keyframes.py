@@ -22,6 +22,7 @@ from scipy.optimize import linear_sum_assignment
 from pipeline.pose.tracking import iou_matrix
 
 MIN_IOU = 0.2  # two keyframes' boxes overlapping less than this are not the same person
+CHANGE_MIN_HEIGHT = 0.3  # people_change: a person this tall (share of the tallest) coming or going counts
 
 
 def keyframe_step(source_fps: float, pose_fps: float) -> int:
@@ -40,6 +41,20 @@ def match_people(a: np.ndarray, b: np.ndarray, min_iou: float = MIN_IOU) -> list
     iou = iou_matrix(np.asarray(a, np.float64), np.asarray(b, np.float64))
     rows, cols = linear_sum_assignment(-iou)
     return [(int(i), int(j)) for i, j in zip(rows, cols) if iou[i, j] >= min_iou]
+
+
+def people_change(a: Any, b: Any, min_height: float = CHANGE_MIN_HEIGHT) -> bool:
+    """Whether someone is on only one of two keyframes' people (they came in or went out of sight,
+    or the ``top_k`` largest changed), at least ``min_height`` of the tallest person's height:
+    there, drawing the frames between would guess. (Smaller people who flicker in and out, mostly
+    weak boxes far behind a dancer, do not count.)"""
+    pairs = match_people(a.boxes, b.boxes)
+    if len(pairs) == max(len(a.scores), len(b.scores)):
+        return False
+    heights = [people.boxes[:, 3] - people.boxes[:, 1] for people in (a, b)]
+    tallest = max(float(h.max(initial=0.0)) for h in heights)
+    lone = np.concatenate([np.delete(heights[0], [i for i, _ in pairs]), np.delete(heights[1], [j for _, j in pairs])])
+    return bool((lone >= min_height * tallest).any())
 
 
 def lerp_points(a: np.ndarray, b: np.ndarray, w: float | np.ndarray) -> np.ndarray:

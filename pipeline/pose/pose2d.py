@@ -18,6 +18,7 @@ clear skeleton. Very dark frames are brightened first (:func:`lift_dark`).
 
 from __future__ import annotations
 
+import dataclasses
 import queue
 import threading
 from dataclasses import dataclass
@@ -28,8 +29,9 @@ import cv2
 import numpy as np
 
 from pipeline.core.errors import InputError
+from pipeline.ingest.media import Frame
 from pipeline.ingest.segmentvideo import SegmentVideo, frames_of
-from pipeline.pose.keyframes import held, in_between, keyframe_step
+from pipeline.pose.keyframes import held, in_between, keyframe_step, people_change
 from pipeline.pose.models.detector import Detections, FusedDetector, PicoDetDetector, RTMDetDetector, largest
 from pipeline.pose.models.pose import BlazePose, BodyAndFeet, MoveNetPose, PoseBatch, RTMPose, TinyPose
 from pipeline.pose.models.session import create_session, providers
@@ -49,6 +51,8 @@ class Pose2dOptions:
     carry_min_score: float = 0.2   # keypoints at least this confident define a carried-over box
     carry_margin: float = 0.15     # carried box = keypoint extent grown by this share per side ...
     carry_framed: bool = True      # ... or framed as the detector last framed that person (box_framing)
+    pose_changes: bool = True      # where someone is on only one of two keyframes, the frames between are
+                                   # posed too, not drawn (keyframes.people_change)
     redetect_overlap: float = 0.3  # between detections, two carried people overlapping this much (IoU) ...
     redetect_joints: int = 6       # ... or a carried pose with fewer joints at confirm_joint_score, or one
                                    # lost: the detector runs on that frame after all (0: never on demand)
@@ -64,7 +68,8 @@ class Pose2dOptions:
     @staticmethod
     def from_params(params: dict) -> "Pose2dOptions":
         names = ("top_k", "fps", "det_every", "det_score", "confirm_score", "confirm_joints", "confirm_joint_score",
-                 "confirm_min_height", "min_joints", "dark_mean", "redetect_overlap", "redetect_joints", "carry_framed")
+                 "confirm_min_height", "min_joints", "dark_mean", "redetect_overlap", "redetect_joints", "carry_framed",
+                 "pose_changes")
         fields = {f: type(getattr(Pose2dOptions, f)) for f in names}
         return Pose2dOptions(**{f: kind(params[f]) for f, kind in fields.items() if f in params})
 
@@ -246,20 +251,23 @@ def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opt
     def posed(index: int) -> bool:
         return index % step == 0 or index == last
 
-    def decoded() -> Iterator[tuple]:
+    def decoded() -> Iterator[tuple | Frame]:
         keyframes = 0
         for frame in frames_of(video, keep=posed if step > 1 else None):
-            number = int(round(frame.time * fps))
-            if frame.image is None:
-                yield number, frame.time, None, None
+            if frame.image is None:  # between keyframes: passed on unconverted
+                yield dataclasses.replace(frame, index=int(round(frame.time * fps)))
                 continue
             image = lift_dark(frame.image, opts.dark_mean)
             box: Any = detector.preprocess(image) if keyframes % every == 0 else None  # None: carry over
             keyframes += 1
-            yield number, frame.time, image, box
+            yield int(round(frame.time * fps)), frame.time, image, box
 
-    def detected(frames: Iterator[tuple]) -> Iterator[tuple]:
-        for number, time, image, box in frames:
+    def detected(frames: Iterator[tuple | Frame]) -> Iterator[tuple | Frame]:
+        for item in frames:
+            if isinstance(item, Frame):
+                yield item
+                continue
+            number, time, image, box = item
             dets = detector.infer(box) if box is not None else None
             yield number, time, image, dets
 
@@ -268,14 +276,16 @@ def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opt
     feet_model = pose if isinstance(pose, BodyAndFeet) else None
     body_model = pose.body if feet_model else pose
 
-    def people(frames: Iterator[tuple]) -> Iterator[tuple]:
+    def people(frames: Iterator[tuple | Frame]) -> Iterator[tuple | Frame]:
         previous: Detections | None = None
         keypoints = np.zeros((0, 17, 3), np.float32)
         framing = np.zeros((0, 4), np.float32)  # how the detector framed each person (box_framing)
-        for number, time, image, dets in frames:
-            if image is None:  # between keyframes
-                yield number, time, None, None, None, False
+        waiting: list[Frame] = []  # the frames since the last keyframe
+        for item in frames:
+            if isinstance(item, Frame):
+                waiting.append(item)
                 continue
+            number, time, image, dets = item
             found = dets  # None: carry the boxes over
             if dets is None:
                 dets, kept = _carry(previous, keypoints, framing, image, opts)
@@ -286,33 +296,48 @@ def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opt
             if found is not None:
                 dets, batch = find_people(image, found, body_model, opts)
                 framing = box_framing(dets.boxes, batch.keypoints, opts.carry_min_score, opts.carry_margin)
-            was_detected = found is not None
+            if waiting and previous is not None and opts.pose_changes and people_change(previous, dets):
+                yield from (posed_now(frame) for frame in waiting)  # drawing them would guess
+            else:
+                yield from waiting
+            waiting = []
             previous, keypoints = dets, batch.keypoints
-            yield number, time, image, dets, batch, was_detected
+            yield number, time, image, dets, batch, found is not None
+        yield from waiting
+
+    def posed_now(frame: Frame) -> tuple:
+        """A frame between two keyframes whose people differ, posed as a keyframe is."""
+        image = lift_dark(frame.shown(), opts.dark_mean)
+        dets, batch = find_people(image, detector.detect(image), body_model, opts)
+        return frame.index, frame.time, image, dets, batch, True
 
     try:
         q = opts.queue_size
         stream = _threaded(people(_threaded(detected(_threaded(decoded(), q, stop)), q, stop)), q, stop)
         keyframe: FramePoses | None = None
-        between: list[tuple[int, float]] = []  # frames since the last keyframe, waiting for the next
-        for number, time, image, dets, batch, was_detected in stream:
-            if image is None:
-                between.append((number, time))
+        between: list[Frame] = []  # frames since the last keyframe, waiting for the next
+        for item in stream:
+            if isinstance(item, Frame):
+                between.append(item)
                 continue
+            number, time, image, dets, batch, was_detected = item
             if feet_model is not None:
                 batch = feet_model.complete(image, dets.boxes, batch)
-            world = batch.world if batch.world is not None else np.full((len(batch), WORLD, 3), np.nan, np.float32)
-            current = FramePoses(number, time, dets.boxes, dets.scores, batch.keypoints, was_detected, batch.feet,
-                                 world)
+            current = _frame_poses(number, time, dets, batch, was_detected)
             if between and keyframe is not None:
-                yield from in_between(keyframe, current, between, opts.top_k)
+                yield from in_between(keyframe, current, [(f.index, f.time) for f in between], opts.top_k)
             between = []
             yield current
             keyframe = current
         if between and keyframe is not None:  # a video file's frames after its last keyframe
-            yield from held(keyframe, between)
+            yield from held(keyframe, [(f.index, f.time) for f in between])
     finally:
         stop.set()
+
+
+def _frame_poses(number: int, time: float, people: Detections, batch: PoseBatch, detected: bool) -> FramePoses:
+    world = batch.world if batch.world is not None else np.full((len(batch), WORLD, 3), np.nan, np.float32)
+    return FramePoses(number, time, people.boxes, people.scores, batch.keypoints, detected, batch.feet, world)
 
 
 def needs_detection(previous: Detections | None, carried: Detections, keypoints: np.ndarray,

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from pipeline.ingest.segmentvideo import SegmentVideo, frames_of
-from pipeline.pose.keyframes import drawn_between, held, in_between, keyframe_step, match_people
+from pipeline.pose.keyframes import drawn_between, held, in_between, keyframe_step, match_people, people_change
 from pipeline.pose.pose2d import FramePoses, Pose2dOptions, collect_poses, estimate_segment
 from pipeline.pose.pose2dfile import Poses
 
@@ -40,6 +40,17 @@ def test_people_are_followed_from_keyframe_to_keyframe_by_their_boxes_not_their_
     b = np.array([[310, 0, 410, 200], [5, 0, 105, 200], [900, 0, 950, 100]], np.float32)
     assert sorted(match_people(a, b)) == [(0, 1), (1, 0)]
     assert match_people(a, np.array([[600, 0, 700, 200]], np.float32)) == []  # nobody overlaps: no pair
+
+
+def test_someone_on_only_one_of_two_keyframes_is_a_change_of_people() -> None:
+    one, other = person(0), person(400)
+    assert not people_change(keyframe(0, [one, other]), keyframe(3, [person(10), person(405)]))  # both moved a bit
+    assert people_change(keyframe(0, [one]), keyframe(3, [one, other]))                          # someone came
+    assert people_change(keyframe(0, [one, other]), keyframe(3, [other]))                        # someone went
+    assert people_change(keyframe(0, [one]), keyframe(3, [person(300)]))   # no overlap: another person, or a leap
+    assert not people_change(keyframe(0, []), keyframe(3, []))
+    far = person(800, height=40.0)  # a fifth of the dancers' height, far behind them
+    assert not people_change(keyframe(0, [one, other]), keyframe(3, [one, other, far]))
 
 
 def test_frames_between_two_keyframes_are_drawn_linearly_at_the_weaker_keyframes_confidence_or_held() -> None:
@@ -87,6 +98,33 @@ def test_posing_keyframes_only_gives_every_frame_and_the_keyframes_exactly_as_po
     height = np.median(every.box[:, 3] - every.box[:, 1])
     assert np.median(moved[sure]) < 0.02 * height                    # drawn where the models would put them
     assert isinstance(Poses.from_table(fast.table()).interpolated, np.ndarray)
+
+
+def test_where_someone_comes_into_sight_between_keyframes_the_frames_between_are_posed(
+        media_dir: Path, default_models, tmp_path: Path) -> None:
+    from tests.conftest import ffmpeg
+
+    models, _ = default_models
+    clip = tmp_path / "card_then_dancer.mp4"  # frames 0-9 an empty card, 10-23 the dancer (24 fps)
+    ffmpeg("-f", "lavfi", "-i", "color=c=0x203060:s=270x480:r=24:d=1", "-ss", "2", "-t", "1",
+           "-i", str(media_dir / "videos/dance_single_music_musepose.mp4"), "-filter_complex",
+           "[1:v]scale=270:480,fps=24,trim=end_frame=14,setsar=1[d];[0:v]trim=end_frame=10,setsar=1[c];"
+           "[c][d]concat=n=2:v=1:a=0,format=yuv420p[v]",
+           "-map", "[v]", "-c:v", "libx264", "-preset", "ultrafast", "-crf", "12", str(clip))
+    view = SegmentVideo(clip, 0.0, 24, 24, 270, 480)
+
+    def run(fps: float = 8, **options) -> Poses:
+        return collect_poses(estimate_segment(view, 24.0, models.detector, models.pose,
+                                              Pose2dOptions(fps=fps, **options)))[0]
+
+    every, changes, drawn = run(fps=0), run(), run(pose_changes=False)
+    assert set(every.frame) == set(range(10, 24))  # the dancer from frame 10 on: keyframes 9 and 12 differ
+    posed = changes.frame[~changes.interpolated]
+    assert {10, 11} <= set(posed) and not {13, 14} & set(posed)  # only the frames between 9 and 12
+    assert np.array_equal(changes.frame, every.frame)
+    assert np.array_equal(changes.keypoints[np.isin(changes.frame, [10, 11])],
+                          every.keypoints[np.isin(every.frame, [10, 11])])
+    assert 10 not in set(drawn.frame)  # drawn instead: held from keyframe 9, where nobody was
 
 
 def test_one_persons_track_drawn_from_keyframes_keeps_the_keyframes_and_the_last_frame() -> None:
