@@ -241,7 +241,8 @@ def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opt
     """Yield the poses of every frame of ``video`` (a segment view or a video file), in order.
 
     The models pose every ``keyframe_step``-th frame (and a segment's last); the frames between
-    are decoded but not converted, and come out interpolated once the next keyframe is posed.
+    are decoded but not converted, and come out interpolated once the next keyframe is posed, or
+    posed after all where the two keyframes' people differ (``pose_changes``).
     """
     stop = threading.Event()
     every = max(1, int(opts.det_every))
