@@ -255,13 +255,14 @@ def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opt
     def decoded() -> Iterator[tuple | Frame]:
         keyframes = 0
         for frame in frames_of(video, keep=posed if step > 1 else None):
+            number = int(round(frame.time * fps))
             if frame.image is None:  # between keyframes: passed on unconverted
-                yield dataclasses.replace(frame, index=int(round(frame.time * fps)))
+                yield dataclasses.replace(frame, index=number)
                 continue
             image = lift_dark(frame.image, opts.dark_mean)
             box: Any = detector.preprocess(image) if keyframes % every == 0 else None  # None: carry over
             keyframes += 1
-            yield int(round(frame.time * fps)), frame.time, image, box
+            yield number, frame.time, image, box
 
     def detected(frames: Iterator[tuple | Frame]) -> Iterator[tuple | Frame]:
         for item in frames:
