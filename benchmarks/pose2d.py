@@ -2,7 +2,8 @@
 
 Measures, side by side in one run (median of --runs), on a one-dancer clip and on a
 five-person clip (two dancers above three seated musicians, built from the shared media):
-  (a) the pose2d + track work of the stages: streamed decode, detection, people, pose, tracking
+  (a) the pose2d + track work of the stages: streamed decode, detection, people, pose, tracking,
+      on a view of the whole clip at its own size, as the stage works on segment views
   (b) a naive loop: decode a frame, detect, choose people, pose each, single thread, no overlap
   (c) pure model time: the time spent inside ONNX Runtime's ``run`` during (b)
 and the peak RSS of the pose2d+track work on a short and a long input (the clip looped;
@@ -35,6 +36,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from pipeline.core.params import load_params, stage_params  # noqa: E402
 from pipeline.ingest.media import ffmpeg_exe, iter_frames, probe  # noqa: E402
+from pipeline.ingest.segmentvideo import SegmentVideo  # noqa: E402
 from pipeline.pose.pose2d import (  # noqa: E402
     Pose2dOptions,
     collect_poses,
@@ -92,7 +94,10 @@ def load_models(params: dict):
 
 
 def stage_work(clip: Path, fps: float, models, opts: Pose2dOptions) -> int:
-    poses, frames = collect_poses(estimate_segment(clip, fps, models.detector, models.pose, opts))
+    # As the stage runs: on a segment view (here the whole clip at its own size), whose decoder
+    # skips the frames no keyframe shows.
+    view = SegmentVideo.whole(clip, probe(clip))
+    poses, frames = collect_poses(estimate_segment(view, fps, models.detector, models.pose, opts))
     assign_tracks(poses.frame, poses.box, poses.keypoints)
     return frames
 

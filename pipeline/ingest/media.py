@@ -198,11 +198,15 @@ def _bgr(frame: av.VideoFrame) -> np.ndarray:
     return _rotate(frame.to_ndarray(format="bgr24"), int(frame.rotation or 0))
 
 
-def decode_video(container, stream, path: Path, max_bad_packets: int = 25) -> Iterator[av.VideoFrame]:
-    """Decoded frames of ``stream`` in order. A corrupt packet is skipped with a warning; more
-    than ``max_bad_packets`` of them raise MediaError. Demuxing errors propagate (av's)."""
+def decode_video(container, stream, path: Path, max_bad_packets: int = 25,
+                 before: Callable[[av.Packet], None] | None = None) -> Iterator[av.VideoFrame]:
+    """Decoded frames of ``stream`` in order (``before`` sees each packet before it is decoded).
+    A corrupt packet is skipped with a warning; more than ``max_bad_packets`` of them raise
+    MediaError. Demuxing errors propagate (av's)."""
     bad = 0
     for packet in container.demux(stream):
+        if before is not None:
+            before(packet)
         try:
             decoded = packet.decode()
         except av.error.FFmpegError as exc:

@@ -160,3 +160,44 @@ def test_trim_stage_refuses_invalid_annotations_naming_every_line(project: Path,
         trim.run(project)
     assert [e.line for e in err.value.errors] == [2, 3]
     assert not (project / "data/segments/index.parquet").exists()
+
+
+def _b_frame_video(path: Path, rate: str, setpts: str = "PTS") -> Path:
+    """A test pattern with B-frames (x264's veryfast: about half the frames are referred to by none),
+    a keyframe every 2 s; ``setpts`` may make its clock irregular."""
+    ffmpeg("-f", "lavfi", "-i", f"testsrc2=size=160x120:rate={rate}:duration=4", "-vf", f"setpts={setpts}",
+           "-fps_mode", "passthrough", "-c:v", "libx264", "-preset", "veryfast", "-g", rate.split("/")[0],
+           "-pix_fmt", "yuv420p", str(path))
+    return path
+
+
+@pytest.mark.parametrize(("rate", "setpts", "view_rate", "start"), [
+    ("24", "PTS", Fraction(24), 0.0),                        # the source's own clock
+    ("30", "PTS", Fraction(30), 1.3),                        # a late start: decoded from the keyframe before
+    ("60", "PTS", Fraction(30), 0.4),                        # every other source frame, slots on a frame's edge
+    ("24", "PTS", Fraction(30), 0.0),                        # upsampled: some source frames shown twice
+    ("30", "PTS+0.012*mod(N\\,3)/TB", Fraction(30), 0.2),  # an irregular clock
+])
+def test_frames_a_view_does_not_keep_look_the_same_whether_or_not_the_decoder_skipped_them(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture, rate: str, setpts: str, view_rate: Fraction,
+        start: float) -> None:
+    src = _b_frame_video(tmp_path / "b.mp4", rate, setpts)
+    view = SegmentVideo(src, start, view_rate, 60, 160, 120)
+    every = [f.image for f in view.iter_frames()]
+    with caplog.at_level("DEBUG", logger="pipeline.ingest.segmentvideo"):
+        kept = list(view.iter_frames(keep=lambda k: k % 3 == 0))
+    assert [f.index for f in kept] == list(range(60))
+    assert [f.image is not None for f in kept] == [k % 3 == 0 for k in range(60)]
+    for k, frame in enumerate(kept):  # kept or not, each shows the very pixels of a full decode
+        assert np.array_equal(frame.shown(), every[k]), k
+    skipped = [r.message for r in caplog.records if "skipped" in r.message]
+    assert skipped and int(skipped[0].split("skipped ")[1].split()[0]) > 0, skipped  # work saved
+
+
+def test_a_view_can_start_at_a_later_frame_on_the_same_clock(tmp_path: Path) -> None:
+    src = _b_frame_video(tmp_path / "b.mp4", "30")
+    view = SegmentVideo(src, 0.5, Fraction(30), 90, 160, 120)
+    every = [f.image for f in view.iter_frames()]
+    later = list(view.iter_frames(first=50))
+    assert [f.index for f in later] == list(range(50, 90))
+    assert all(np.array_equal(f.image, every[f.index]) for f in later)
