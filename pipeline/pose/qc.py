@@ -1,5 +1,6 @@
 """QC videos for annotators: boxes, skeletons and big id labels in stable per-id colours,
-the frame number and the timecode annotators type into manifests, and the segment's audio.
+the frame number and the timecode annotators type into manifests (and "drawn" on frames the
+2D models did not look at: drawn between two keyframes), and the segment's audio.
 
 Frames are read from the segment's view on its downloaded video, drawn and piped to ffmpeg
 one at a time (H.264 yuv420p, faststart: plays in any browser); memory does not grow with the
@@ -41,8 +42,10 @@ def id_colour(track_id: int) -> tuple[int, int, int]:
     return int(b * 255), int(g * 255), int(r * 255)
 
 
-def draw_frame(image: np.ndarray, frame: int, time: float, people: list[tuple], kp_min_score: float) -> np.ndarray:
-    """Draw ``people`` = [(track_id, box[4], keypoints[17x3] or [21x3] with the feet), ...] and the banner."""
+def draw_frame(image: np.ndarray, frame: int, time: float, people: list[tuple], kp_min_score: float,
+               drawn: bool = False) -> np.ndarray:
+    """Draw ``people`` = [(track_id, box[4], keypoints[17x3] or [21x3] with the feet), ...] and the
+    banner (``drawn``: the poses were drawn between two keyframes, not posed by the models)."""
     h, w = image.shape[:2]
     unit = max(h, w) / 720.0
     thick = max(1, int(round(2 * unit)))
@@ -64,7 +67,7 @@ def draw_frame(image: np.ndarray, frame: int, time: float, people: list[tuple], 
         cv2.rectangle(image, (x1, ty - th - 6), (x1 + tw + 8, ty + 4), colour, -1)
         cv2.putText(image, label, (x1 + 4, ty), cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), thick + 1, cv2.LINE_AA)
     # Bottom-left, so it never hides the id label of someone near the top edge.
-    banner = f"frame {frame}   {format_time(time)}"
+    banner = f"frame {frame}   {format_time(time)}" + ("   drawn" if drawn else "")
     scale = 0.8 * unit
     (tw, th), _ = cv2.getTextSize(banner, cv2.FONT_HERSHEY_SIMPLEX, scale, thick)
     cv2.rectangle(image, (0, h - th - 16), (tw + 16, h), (0, 0, 0), -1)
@@ -74,14 +77,17 @@ def draw_frame(image: np.ndarray, frame: int, time: float, people: list[tuple], 
 
 def render_qc(segment: SegmentVideo, fps: float, frames: np.ndarray, track_ids: np.ndarray, boxes: np.ndarray,
               keypoints: np.ndarray, out: Path, *, kp_min_score: float = 0.2,
-              crf: int = 23, preset: str = "veryfast", feet: np.ndarray | None = None) -> None:
-    """Write the QC video of ``segment`` with the given detections (one row per person per frame)."""
+              crf: int = 23, preset: str = "veryfast", feet: np.ndarray | None = None,
+              drawn: np.ndarray | None = None) -> None:
+    """Write the QC video of ``segment`` with the given detections (one row per person per frame;
+    ``drawn``: which rows were drawn between keyframes)."""
     by_frame: dict[int, list[tuple]] = defaultdict(list)
     for i in range(len(frames)):
         kps = keypoints[i].reshape(17, 3)
         if feet is not None:
             kps = np.vstack([kps, feet[i].reshape(4, 3)])
         by_frame[int(frames[i])].append((int(track_ids[i]), boxes[i], kps))
+    drawn_frames = set(np.asarray(frames)[np.asarray(drawn, bool)].tolist()) if drawn is not None else set()
     stream = segment.iter_frames()
     first = next(stream, None)
     if first is None:
@@ -101,7 +107,8 @@ def render_qc(segment: SegmentVideo, fps: float, frames: np.ndarray, track_ids: 
         try:
             for frame in _chain(first, stream):
                 number = int(round(frame.time * fps))
-                image = draw_frame(frame.image, number, frame.time, by_frame.get(number, []), kp_min_score)
+                image = draw_frame(frame.image, number, frame.time, by_frame.get(number, []), kp_min_score,
+                                   number in drawn_frames)
                 proc.stdin.write(image.tobytes())
             proc.stdin.close()
         except BrokenPipeError:
@@ -135,5 +142,5 @@ def qc_video(root: Path, segment_id: str, *, kp_min_score: float = 0.2) -> Path:
         raise MediaError(Path(root) / SEGMENTS, f"segment {segment_id} is not in the index")
     tracks = read_tracks(tracks_file)
     render_qc(SegmentVideo.from_index(Path(root) / RAW, row), tracks.fps, tracks.frame, tracks.track_id, tracks.box,
-              tracks.keypoints, out, kp_min_score=kp_min_score, feet=tracks.feet)
+              tracks.keypoints, out, kp_min_score=kp_min_score, feet=tracks.feet, drawn=tracks.drawn)
     return out

@@ -139,7 +139,7 @@ def test_a_tracks_file_holds_only_the_ids_and_reads_back_joined_with_its_pose2d_
     rng = np.random.default_rng(0)
     poses = Poses(frame=frame, time=frame / 30.0, person=np.tile([0, 1], n // 2), box=rng.random((n, 4)) * 500,
                   box_score=np.full(n, 0.9), keypoints=rng.random((n, 17, 3)) * 500, detected=np.ones(n, bool),
-                  feet=rng.random((n, 4, 3)), world=rng.random((n, 33, 3)))
+                  feet=rng.random((n, 4, 3)), world=rng.random((n, 33, 3)), interpolated=frame % 3 != 0)
     segment = SegmentInfo("seg", 30.0, n // 2, 640, 360)
     pose2d, tracks = tmp_path / "data/pose2d/seg.parquet", tmp_path / "data/tracks/seg.parquet"
     write_pose2d(pose2d, poses, segment, fingerprint="p1", params={}, inputs={})
@@ -150,6 +150,7 @@ def test_a_tracks_file_holds_only_the_ids_and_reads_back_joined_with_its_pose2d_
     assert back.ids == [1, 2] and back.fingerprint == "t1" and back.frames_total == n // 2
     np.testing.assert_allclose(back.keypoints, poses.keypoints, rtol=1e-6)
     np.testing.assert_allclose(back.world, poses.world, rtol=1e-6)
+    assert np.array_equal(back.drawn, frame % 3 != 0)  # which rows were drawn between keyframes
     # A pose2d file written again after tracking is refused, not silently mis-numbered.
     write_pose2d(pose2d, poses, segment, fingerprint="p2", params={}, inputs={})
     with pytest.raises(InputError, match="another version.*dvc repro track"):
@@ -176,3 +177,15 @@ def test_a_box_that_swallows_two_dancers_for_a_moment_does_not_change_either_one
     ids = assign_tracks(np.array(frames), np.array(boxes), np.array(kps))
     truth = np.array(truth)
     assert ids_of(ids, truth, "man") == {1} and ids_of(ids, truth, "woman") == {2}
+
+
+def test_the_qc_banner_says_which_frames_were_drawn_between_keyframes() -> None:
+    from pipeline.pose.qc import draw_frame
+
+    person = [(1, np.array([40, 40, 120, 300]), np.full((17, 3), 0.0))]
+
+    def banner_width(drawn: bool) -> int:
+        image = draw_frame(np.full((360, 640, 3), 255, np.uint8), 10, 0.4, person, 0.2, drawn=drawn)
+        return int((image[-2].sum(1) == 0).sum())  # the banner's black box along the bottom row
+
+    assert banner_width(True) > banner_width(False) + 40  # "frame 10   00:00.400   drawn"
