@@ -48,7 +48,7 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     # The demo's lifter: the shipped one (training it is tested in tests/motion/test_lifting.py).
     set_params(root, "train", steps=40)
     set_params(root, "propose_segments", sample_fps=2.0)  # its own tests measure it at the default
-    set_params(root, "trim", fps=15)  # about half the demo's frames for 2D pose; every later stage is the same
+    # Segments at the source's rate and 2D on keyframes, as the demo is configured.
 
     first = _dvc(root, "repro")
     assert first.returncode == 0, first.stderr[-3000:]
@@ -133,7 +133,7 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     ran = [line.split("'")[1] for line in third.stdout.splitlines() if line.startswith("Running stage")]
     assert ran == ["discover", "clean", "lift", "smooth", "resample", "ground", "shard", "train"]  # discover: always
     assert not read_clean(root / "data/clean/solo_dance_001.parquet").clips
-    assert sum(len(c.frame) for c in read_clean(root / "data/clean/solo_dance_000.parquet").clips) == 9 * 15
+    assert sum(len(c.frame) for c in read_clean(root / "data/clean/solo_dance_000.parquet").clips) == 9 * 30  # 9 s
 
     status = subprocess.run([sys.executable, "-m", "pipeline.cli", "status"], cwd=root,
                             capture_output=True, text=True, check=True).stdout
