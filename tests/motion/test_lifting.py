@@ -124,12 +124,15 @@ def test_lifting_the_dance_clip_gives_plausible_skeletons(tiny_lifter: tuple, da
     from pipeline.pose.models.detector import RTMDetDetector
     from pipeline.pose.models.pose import MoveNetPose
     from pipeline.pose.models.session import create_session
+    from pipeline.ingest.media import probe
+    from pipeline.ingest.segmentvideo import SegmentVideo
     from pipeline.pose.pose2d import Pose2dOptions, estimate_segment
 
     _, path = tiny_lifter
     det = RTMDetDetector(create_session(models_dir / "rtmdet_nano_person_end2end.onnx"))
     pose = MoveNetPose(create_session(models_dir / "movenet_singlepose_lightning_4_dequant.onnx"))
-    kps = np.stack([fp.keypoints[0] for fp in estimate_segment(dance_clip, 24.0, det, pose, Pose2dOptions())
+    view = SegmentVideo.whole(dance_clip, probe(dance_clip))  # 2D as the stage makes it: keyframes at 8 a second
+    kps = np.stack([fp.keypoints[0] for fp in estimate_segment(view, 24.0, det, pose, Pose2dOptions(fps=8))
                     if len(fp.scores)])
     filled, _ = fill_low_confidence(kps, 0.3)
     lifter = Lifter.from_session(ort.InferenceSession(str(path)))
