@@ -121,11 +121,11 @@ def test_trained_lifter_beats_the_mean_pose_on_held_out_mocap(tiny_lifter: tuple
 
 def test_lifting_the_dance_clip_gives_plausible_skeletons(tiny_lifter: tuple, dance_clip: Path,
                                                           models_dir: Path) -> None:
+    from pipeline.ingest.media import probe
+    from pipeline.ingest.segmentvideo import SegmentVideo
     from pipeline.pose.models.detector import RTMDetDetector
     from pipeline.pose.models.pose import MoveNetPose
     from pipeline.pose.models.session import create_session
-    from pipeline.ingest.media import probe
-    from pipeline.ingest.segmentvideo import SegmentVideo
     from pipeline.pose.pose2d import Pose2dOptions, estimate_segment
 
     _, path = tiny_lifter
