@@ -88,7 +88,7 @@ class SegmentVideo:
         emitted = first
         held = None  # (decoded frame, converted image or None, its time on the segment's clock)
         skips = _Skips() if keep is not None and skip and tap is None else None
-        again = _Redecode(self)
+        again = _Redecode(self) if skips is not None else None  # for frames the decoder skipped
         with _open(self.source) as container:
             streams = video_streams(container)
             if not streams:
