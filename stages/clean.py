@@ -62,7 +62,7 @@ def run(root: Path) -> None:
     if skipped:
         log.info("skipping %d segments without a manifest (clean.unannotated: skip): %s", len(skipped),
                  ", ".join(skipped))
-    run_item_stage("clean", items, clean_segment, out_dirs=[root / CLEAN], params=params, kind="process")
+    run_item_stage("clean", items, clean_segment, out_dirs=[root / CLEAN], params=params, light=True)
     _write_metrics(root, skipped)
 
 

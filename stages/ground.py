@@ -40,7 +40,7 @@ def run(root: Path) -> None:
                         int(params.get("min_contact_frames", MIN_PLANTED_FRAMES)),
                         float(params.get("contact_hold", HOLD_PROBABILITY)), params, inputs, fp)
         items.append(WorkItem(src.stem, fp, (out,), job))
-    run_item_stage("ground", items, ground_segment, out_dirs=[root / WORLD], params=params)
+    run_item_stage("ground", items, ground_segment, out_dirs=[root / WORLD], params=params, light=True)
 
 
 def main() -> int:

@@ -44,7 +44,7 @@ def run(root: Path) -> None:
         items.append(WorkItem(clean_file.stem, fp, (out,), job))
     run_item_stage("lift", items, lift_segment, out_dirs=[root / POSE3D], params=params,
                    setup=load_models, setup_args=(str(model), str(contact or ""), int(params.get("threads", 1))),
-                   gpu=True)
+                   gpu=True, light=True)
 
 
 def main() -> int:

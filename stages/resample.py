@@ -27,7 +27,7 @@ def run(root: Path) -> None:
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out = root / MOTION24 / src.name
         items.append(WorkItem(src.stem, fp, (out,), ResampleJob(src, out, params["fps"], params, inputs, fp)))
-    run_item_stage("resample", items, resample_segment, out_dirs=[root / MOTION24], params=params)
+    run_item_stage("resample", items, resample_segment, out_dirs=[root / MOTION24], params=params, light=True)
 
 
 def main() -> int:

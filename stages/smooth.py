@@ -28,7 +28,7 @@ def run(root: Path) -> None:
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out = root / SMOOTH / src.name
         items.append(WorkItem(src.stem, fp, (out,), SmoothJob(src, out, lamb, params, inputs, fp)))
-    run_item_stage("smooth", items, smooth_segment, out_dirs=[root / SMOOTH], params=params)
+    run_item_stage("smooth", items, smooth_segment, out_dirs=[root / SMOOTH], params=params, light=True)
     write_motion_metrics(root)
 
 

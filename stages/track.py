@@ -40,7 +40,7 @@ def run(root: Path) -> None:
         job = TrackJob(pose_file, out, qc_out, SegmentVideo.from_index(root / RAW, seg), opts, params, fp)
         items.append(WorkItem(seg_id, fp, (out, qc_out) if qc_out else (out,), job))
     run_item_stage("track", items, track_segment, out_dirs=[root / TRACKS, *([root / QC] if qc_enabled else [])],
-                   params=params)
+                   params=params, light=not qc_enabled)  # QC videos are the heavy part
 
 
 def main() -> int:

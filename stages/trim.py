@@ -62,7 +62,7 @@ def run(root: Path) -> None:
 
     _remove_copies(seg_dir)
     run_item_stage("trim", items, plan_job, out_dirs=[seg_dir], params=params, up_to_date=up_to_date,
-                   keep_files=frozenset({INDEX}), finish=write)
+                   keep_files=frozenset({INDEX}), finish=write, light=True)  # plans: a probe each
 
 
 def proposed_segments(root: Path) -> dict[str, list[tuple[float, float, str]]]:

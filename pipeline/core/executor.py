@@ -14,6 +14,7 @@ import logging
 import multiprocessing as mp
 import os
 import signal
+import time
 import traceback
 from dataclasses import dataclass
 from typing import Any, Callable, Iterable, Iterator, Sequence
@@ -171,12 +172,15 @@ def run_items(
     unit: str = "item",
     ray_options: dict | None = None,
     gpu: bool = False,
+    inline_seconds: float = 0.0,
 ) -> Iterator[Outcome]:
     """Yield one Outcome per item, in completion order, with a progress bar.
 
     ``kind`` is "process" (CPU-bound work), "thread" (I/O-bound work such as downloads)
     or "ray" (a Ray cluster, ``ray_options``: address, num_cpus); ``workers <= 1`` runs
-    inline in this process (not for "ray").
+    inline in this process (not for "ray"). With ``inline_seconds`` (kind "process"), items
+    run inline until that much time has passed, and only what is left then goes to the
+    workers: spawning them costs more than a few items of a light stage take.
     """
     bar = tqdm(total=len(items), desc=desc, unit=unit, disable=not items, leave=True)
     try:
@@ -185,14 +189,20 @@ def run_items(
                 bar.update()
                 yield outcome
             return
-        if workers <= 1 or len(items) <= 1:
+        budget = float("inf") if workers <= 1 or len(items) <= 1 else inline_seconds if kind == "process" else 0.0
+        if budget > 0:
+            started = time.perf_counter()
             if initializer is not None:
                 initializer(*initargs)
-            for item in items:
-                outcome = _call(fn, item)
+            done = 0
+            while done < len(items) and time.perf_counter() - started < budget:
+                outcome = _call(fn, items[done])
+                done += 1
                 bar.update()
                 yield outcome
-            return
+            items = items[done:]
+            if not items:
+                return
         if kind == "thread":
             pool: cf.Executor = cf.ThreadPoolExecutor(workers, initializer=initializer, initargs=tuple(initargs))
         elif kind == "process":

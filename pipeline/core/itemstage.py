@@ -18,6 +18,11 @@ from pipeline.core.storage import read_meta, remove_stale_temps
 
 log = logging.getLogger(__name__)
 
+# A light stage's items (well under a second each on a demo segment) run in the stage's own
+# process until this many seconds have passed, and only the rest goes to worker processes:
+# spawning two workers costs about 1.5 s on 2 cores, more than a few such items take.
+LIGHT_INLINE_SECONDS = 2.0
+
 # `dance3d retry`: when set, only these items are attempted; the others stay as they are.
 _ONLY: contextvars.ContextVar[frozenset[str] | None] = contextvars.ContextVar("only_items", default=None)
 
@@ -71,12 +76,14 @@ def run_item_stage(
     up_to_date: Callable[[WorkItem], bool] = is_up_to_date,
     keep_files: frozenset[str] = frozenset(),
     finish: Callable[[StageReport], None] | None = None,
+    light: bool = False,
 ) -> StageReport:
     """Run ``fn(payload)`` for every item that is not up to date; with ``setup``, each worker
     builds ``setup(*setup_args)`` once (e.g. an ONNX session) and runs ``fn(state, payload)``.
     ``up_to_date`` decides what is skipped (default: the first output's fingerprint);
     ``keep_files`` names stage files in ``out_dirs`` that are not item outputs (e.g. an index);
-    ``finish(report)`` runs before the failure ratio is checked, so what was done is kept."""
+    ``finish(report)`` runs before the failure ratio is checked, so what was done is kept;
+    ``light``: the first items run in this process (``LIGHT_INLINE_SECONDS``), not in workers."""
     out_dirs = list(out_dirs)
     only = _ONLY.get()
     for folder in out_dirs:
@@ -101,7 +108,8 @@ def run_item_stage(
         work, initializer, initargs = with_state(functools.partial(_apply_with_state, fn), setup, setup_args)
     for outcome in run_items(work, todo, workers=int(params.get("workers", 1)),
                              kind="ray" if executor == "ray" else kind, initializer=initializer, initargs=initargs,
-                             desc=stage, unit=unit, ray_options=params.get("ray") or {}, gpu=gpu):
+                             desc=stage, unit=unit, ray_options=params.get("ray") or {}, gpu=gpu,
+                             inline_seconds=LIGHT_INLINE_SECONDS if light else 0.0):
         item: WorkItem = outcome.item
         if outcome.ok:
             report.done[item.item_id] = outcome.value

@@ -1,4 +1,4 @@
-"""Identifiers, times and human-edited CSV files."""
+"""Identifiers, times, human-edited CSV files and the executor."""
 
 from __future__ import annotations
 
@@ -110,3 +110,39 @@ def test_a_crashed_worker_names_its_item_the_signal_and_the_retry_command(tmp_pa
     assert "SIGSEGV" in failure.message and "also when run alone" in failure.message
     assert "`dance3d retry demo`" in failure.message
     assert "worker crashed: b" in caplog.text
+
+
+def _pid(x: int) -> int:
+    import os
+
+    return os.getpid()
+
+
+def _pid_after_a_while(x: int) -> int:
+    import os
+    import time
+
+    time.sleep(0.3)
+    return os.getpid()
+
+
+def test_quick_items_of_a_light_stage_run_in_its_own_process() -> None:
+    import os
+
+    from pipeline.core.executor import run_items
+
+    outcomes = list(run_items(_pid, [1, 2, 3, 4], workers=2, inline_seconds=60))
+    assert [o.item for o in outcomes] == [1, 2, 3, 4] and {o.value for o in outcomes} == {os.getpid()}
+
+
+def test_what_is_left_after_the_inline_seconds_goes_to_the_workers() -> None:
+    import os
+
+    from pipeline.core.executor import run_items
+
+    pids = {o.item: o.value for o in run_items(_pid_after_a_while, list(range(6)), workers=2, inline_seconds=0.45)}
+    inline = [i for i in range(6) if pids[i] == os.getpid()]
+    assert sorted(pids) == list(range(6))
+    assert inline and inline == list(range(len(inline))) and len(inline) <= 2  # the first items, 0.3 s each
+    assert len({pids[i] for i in range(len(inline), 6)} - {os.getpid()}) >= 1  # the rest: worker processes
+    assert all(pids[i] != os.getpid() for i in range(len(inline), 6))
