@@ -146,3 +146,18 @@ def test_what_is_left_after_the_inline_seconds_goes_to_the_workers() -> None:
     assert inline and inline == list(range(len(inline))) and len(inline) <= 2  # the first items, 0.3 s each
     assert len({pids[i] for i in range(len(inline), 6)} - {os.getpid()}) >= 1  # the rest: worker processes
     assert all(pids[i] != os.getpid() for i in range(len(inline), 6))
+
+
+def test_a_light_stage_does_its_few_quick_items_itself_and_a_heavy_one_uses_workers(tmp_path: Path) -> None:
+    import os
+
+    from pipeline.core.itemstage import WorkItem, run_item_stage
+
+    def items(folder: str) -> list:
+        return [WorkItem(i, "fp", (tmp_path / folder / f"{i}.parquet",), i) for i in "abc"]
+
+    params = {"workers": 2}
+    light = run_item_stage("light", items("light"), _pid, out_dirs=[tmp_path / "light"], params=params, light=True)
+    heavy = run_item_stage("heavy", items("heavy"), _pid, out_dirs=[tmp_path / "heavy"], params=params)
+    assert set(light.done.values()) == {os.getpid()}
+    assert os.getpid() not in set(heavy.done.values()) and len(heavy.done) == 3
