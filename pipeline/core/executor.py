@@ -189,7 +189,10 @@ def run_items(
                 bar.update()
                 yield outcome
             return
-        budget = float("inf") if workers <= 1 or len(items) <= 1 else inline_seconds if kind == "process" else 0.0
+        if workers <= 1 or len(items) <= 1:
+            budget = float("inf")  # no pool at all
+        else:
+            budget = inline_seconds if kind == "process" else 0.0
         if budget > 0:
             started = time.perf_counter()
             if initializer is not None:

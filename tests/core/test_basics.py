@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import time
 from pathlib import Path
 
 import pytest
@@ -73,8 +76,6 @@ def test_formula_cells_are_neutralised_on_write(tmp_path: Path) -> None:
 
 def _crash_on_three(x: int) -> int:
     if x == 3:
-        import os
-
         os._exit(1)  # a segfault or the OOM killer, as far as the pool can tell
     return x * 10
 
@@ -89,9 +90,6 @@ def test_a_crashing_worker_fails_only_its_own_item() -> None:
 
 def _segfault_on_b(x: str) -> str:
     if x == "b":
-        import os
-        import signal
-
         os.kill(os.getpid(), signal.SIGSEGV)  # what a native library fault does to the worker
     return x
 
@@ -113,22 +111,15 @@ def test_a_crashed_worker_names_its_item_the_signal_and_the_retry_command(tmp_pa
 
 
 def _pid(x: int) -> int:
-    import os
-
     return os.getpid()
 
 
 def _pid_after_a_while(x: int) -> int:
-    import os
-    import time
-
     time.sleep(0.3)
     return os.getpid()
 
 
 def test_quick_items_of_a_light_stage_run_in_its_own_process() -> None:
-    import os
-
     from pipeline.core.executor import run_items
 
     outcomes = list(run_items(_pid, [1, 2, 3, 4], workers=2, inline_seconds=60))
@@ -136,8 +127,6 @@ def test_quick_items_of_a_light_stage_run_in_its_own_process() -> None:
 
 
 def test_what_is_left_after_the_inline_seconds_goes_to_the_workers() -> None:
-    import os
-
     from pipeline.core.executor import run_items
 
     pids = {o.item: o.value for o in run_items(_pid_after_a_while, list(range(6)), workers=2, inline_seconds=0.45)}
@@ -149,8 +138,6 @@ def test_what_is_left_after_the_inline_seconds_goes_to_the_workers() -> None:
 
 
 def test_a_light_stage_does_its_few_quick_items_itself_and_a_heavy_one_uses_workers(tmp_path: Path) -> None:
-    import os
-
     from pipeline.core.itemstage import WorkItem, run_item_stage
 
     def items(folder: str) -> list:
