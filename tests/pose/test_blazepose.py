@@ -105,3 +105,52 @@ def test_a_frames_crops_go_in_one_call_and_give_what_the_published_batch_of_one_
             np.testing.assert_allclose(BlazePose(edited).estimate_in_rois(image, rois, boxes).feet,
                                        BlazePose(published).estimate_in_rois(image, rois, boxes).feet, atol=1e-4)
             assert calls == [5]
+
+
+
+def _stage_models(models_dir: Path, device: str = "cpu"):
+    from pipeline.pose.pose2d import ModelFiles, load_pose_models
+
+    return load_pose_models(ModelFiles(
+        ((str(models_dir / "rtmdet_nano_person_end2end.onnx"), "rtmdet", (320, 320)),),
+        ((str(models_dir / "tinypose_256x192.onnx"), "tinypose", (192, 256)),
+         (str(models_dir / "blazepose_full.onnx"), "blazepose", (256, 256))), device=device))
+
+
+def _has_a_mask(session) -> bool:
+    return any(len(o.shape) == 4 and o.shape[-1] == 1 for o in session.get_outputs())
+
+
+def test_blazepose_runs_without_its_unused_segmentation_mask_and_gives_the_same_poses_bit_for_bit(
+        models_dir: Path, dancer) -> None:
+    # The mask's decoder is half of the model's cost, and nothing here reads the mask.
+    image, box = dancer
+    path = models_dir / "blazepose_full.onnx"
+    published = create_session(path)
+    pruned = create_session(path, unused_outputs=BlazePose.unused_output)
+    assert _has_a_mask(published) and not _has_a_mask(pruned)
+    assert len(pruned.get_outputs()) == len(published.get_outputs()) - 1
+    roi = [BlazePose(published)._first_crop(box[0])[0]]
+    for a, b in ((BlazePose(published).estimate(image, box), BlazePose(pruned).estimate(image, box)),  # alone
+                 (BlazePose(published).estimate_in_rois(image, roi, box),  # as the feet model
+                  BlazePose(pruned).estimate_in_rois(image, roi, box))):
+        for field in ("keypoints", "feet", "world"):
+            assert np.array_equal(getattr(a, field), getattr(b, field))
+    assert not _has_a_mask(_stage_models(models_dir).pose.feet.session)  # the stage's loader drops it too
+
+
+def test_on_the_cpu_crops_go_one_per_call_and_on_a_gpu_a_frames_crops_at_once(models_dir: Path,
+                                                                               monkeypatch) -> None:
+    # Measured on 2 cores: one call on five TinyPose crops costs 25 % more than five calls (its
+    # activations overflow the core's cache), on five BlazePose crops the same; a GPU wants the batch.
+    import onnxruntime
+
+    from pipeline.pose.models.session import CPU, CUDA
+    from pipeline.pose.pose2d import batch_crops
+
+    models = _stage_models(models_dir)
+    assert models.pose.body.session.get_inputs()[0].shape[0] == 1
+    assert models.pose.feet.session.get_inputs()[0].shape[0] == 1
+    assert not batch_crops("cpu") and not batch_crops("auto")  # this onnxruntime has no CUDA
+    monkeypatch.setattr(onnxruntime, "get_available_providers", lambda: [CUDA, CPU])
+    assert batch_crops("auto") and batch_crops("cuda") and not batch_crops("cpu")

@@ -4,6 +4,7 @@ onnxruntime has it, i.e. onnxruntime-gpu is installed, else CPU), ``cpu`` or ``c
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Callable
 
 import onnxruntime as ort
 
@@ -31,9 +32,11 @@ def describe(device: str = "auto", threads: int = 1) -> str:
 
 
 def create_session(path: Path, threads: int = 1, *, any_batch: bool = False,
+                   unused_outputs: Callable[[str, tuple], bool] | None = None,
                    device: str = "auto") -> ort.InferenceSession:
     """A session with ``threads`` intra-op threads (0: onnxruntime's default) on ``device``; with
-    ``any_batch``, on the model edited to take a batch of crops (``batching.any_batch``)."""
+    ``any_batch``, on the model edited to take a batch of crops (``batching.any_batch``); with
+    ``unused_outputs(name, shape)``, without those outputs and what only they need (``pruning``)."""
     options = ort.SessionOptions()
     options.intra_op_num_threads = max(0, int(threads))
     options.inter_op_num_threads = 1
@@ -43,4 +46,8 @@ def create_session(path: Path, threads: int = 1, *, any_batch: bool = False,
         from pipeline.pose.models.batching import any_batch as edited
 
         model = edited(Path(path))
+    if unused_outputs is not None:
+        from pipeline.pose.models.pruning import without_outputs
+
+        model = without_outputs(model if isinstance(model, bytes) else Path(path).read_bytes(), unused_outputs)
     return ort.InferenceSession(model, options, providers=providers(device))
