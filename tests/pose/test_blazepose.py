@@ -137,6 +137,12 @@ def test_blazepose_runs_without_its_unused_segmentation_mask_and_gives_the_same_
         for field in ("keypoints", "feet", "world"):
             assert np.array_equal(getattr(a, field), getattr(b, field))
     assert not _has_a_mask(_stage_models(models_dir).pose.feet.session)  # the stage's loader drops it too
+    # On a GPU both edits apply: a free batch, and no mask.
+    both = create_session(path, any_batch=True, unused_outputs=BlazePose.unused_output)
+    assert both.get_inputs()[0].shape[0] == "batch" and not _has_a_mask(both)
+    two = np.concatenate([box, box * np.float32(0.9)])
+    np.testing.assert_allclose(BlazePose(both).estimate(image, two).feet,
+                               BlazePose(published).estimate(image, two).feet, atol=1e-4)
 
 
 def test_on_the_cpu_crops_go_one_per_call_and_on_a_gpu_a_frames_crops_at_once(models_dir: Path,
