@@ -108,21 +108,12 @@ def test_a_frames_crops_go_in_one_call_and_give_what_the_published_batch_of_one_
 
 
 
-def _stage_models(models_dir: Path, device: str = "cpu"):
-    from pipeline.pose.pose2d import ModelFiles, load_pose_models
-
-    return load_pose_models(ModelFiles(
-        ((str(models_dir / "rtmdet_nano_person_end2end.onnx"), "rtmdet", (320, 320)),),
-        ((str(models_dir / "tinypose_256x192.onnx"), "tinypose", (192, 256)),
-         (str(models_dir / "blazepose_full.onnx"), "blazepose", (256, 256))), device=device))
-
-
 def _has_a_mask(session) -> bool:
     return any(len(o.shape) == 4 and o.shape[-1] == 1 for o in session.get_outputs())
 
 
 def test_blazepose_runs_without_its_unused_segmentation_mask_and_gives_the_same_poses_bit_for_bit(
-        models_dir: Path, dancer) -> None:
+        models_dir: Path, default_models, dancer) -> None:
     # The mask's decoder is half of the model's cost, and nothing here reads the mask.
     image, box = dancer
     path = models_dir / "blazepose_full.onnx"
@@ -136,7 +127,7 @@ def test_blazepose_runs_without_its_unused_segmentation_mask_and_gives_the_same_
                   BlazePose(pruned).estimate_in_rois(image, roi, box))):
         for field in ("keypoints", "feet", "world"):
             assert np.array_equal(getattr(a, field), getattr(b, field))
-    assert not _has_a_mask(_stage_models(models_dir).pose.feet.session)  # the stage's loader drops it too
+    assert not _has_a_mask(default_models[0].pose.feet.session)  # the stage's loader drops it too
     # On a GPU both edits apply: a free batch, and no mask.
     both = create_session(path, any_batch=True, unused_outputs=BlazePose.unused_output)
     assert both.get_inputs()[0].shape[0] == "batch" and not _has_a_mask(both)
@@ -145,7 +136,7 @@ def test_blazepose_runs_without_its_unused_segmentation_mask_and_gives_the_same_
                                BlazePose(published).estimate(image, two).feet, atol=1e-4)
 
 
-def test_on_the_cpu_crops_go_one_per_call_and_on_a_gpu_a_frames_crops_at_once(models_dir: Path,
+def test_on_the_cpu_crops_go_one_per_call_and_on_a_gpu_a_frames_crops_at_once(default_models,
                                                                                monkeypatch) -> None:
     # Measured on 2 cores: one call on five TinyPose crops costs 25 % more than five calls (its
     # activations overflow the core's cache), on five BlazePose crops the same; a GPU wants the batch.
@@ -154,7 +145,7 @@ def test_on_the_cpu_crops_go_one_per_call_and_on_a_gpu_a_frames_crops_at_once(mo
     from pipeline.pose.models.session import CPU, CUDA
     from pipeline.pose.pose2d import batch_crops
 
-    models = _stage_models(models_dir)
+    models = default_models[0]  # the stage's loader, with params.yaml's pose2d models
     assert models.pose.body.session.get_inputs()[0].shape[0] == 1
     assert models.pose.feet.session.get_inputs()[0].shape[0] == 1
     assert not batch_crops("cpu") and not batch_crops("auto")  # this onnxruntime has no CUDA
