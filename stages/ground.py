@@ -1,12 +1,15 @@
 """ground stage: data/motion24 -> data/world/<segment_id>.parquet (world motion: every clip of a segment
 in one scene, gravity-aligned, the floor at y = 0, the contact-anchored root path placed where the
-planted feet are seen, one skeleton per clip, planted feet pinned, rotations)."""
+planted feet are seen, one skeleton per clip, planted feet pinned, rotations, the SMPL skeleton's rotations)."""
 
 from __future__ import annotations
 
 import sys
 from pathlib import Path
 
+import pipeline.motion.smpl.kinematics
+import pipeline.motion.smpl.retarget
+import pipeline.motion.smpl.skeleton
 import pipeline.motion.world.bones
 import pipeline.motion.world.contact
 import pipeline.motion.world.gravity
@@ -26,7 +29,8 @@ from pipeline.motion.world.worldfile import SCHEMA_VERSION
 
 CODE = code_fingerprint(pipeline.motion.world.grounding, pipeline.motion.world.contact, pipeline.motion.world.gravity,
                         pipeline.motion.world.trajectory, pipeline.motion.world.rotations,
-                        pipeline.motion.world.worldfile, pipeline.motion.world.scene, pipeline.motion.world.bones)
+                        pipeline.motion.world.worldfile, pipeline.motion.world.scene, pipeline.motion.world.bones,
+                        pipeline.motion.smpl.retarget, pipeline.motion.smpl.kinematics, pipeline.motion.smpl.skeleton)
 
 
 def run(root: Path) -> None:

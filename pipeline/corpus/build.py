@@ -100,6 +100,7 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
                         "segment_start": seg["start"], "tempo": feats.tempo,
                         "bone_lengths": np.asarray(grounded.facts["bone_lengths"]),
                         "camera_pitch": grounded.facts["pitch_deg"], "camera_roll": grounded.facts["roll_deg"],
+                        "smpl_scaling": grounded.facts.get("smpl_scaling", float("nan")),
                         **window_beats(feats, joints, k, window, fps)}
                 world = grounded.joints[i: i + window].copy()
                 start = world[0, 0, [0, 2]].copy()
@@ -111,10 +112,15 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
                 planted = None if grounded.planted is None else grounded.planted[i: i + window]
                 probability = (None if grounded.contact_probability is None
                                else grounded.contact_probability[i: i + window])
+                smpl_trans = None
+                if grounded.smpl_trans is not None:
+                    smpl_trans = grounded.smpl_trans[i: i + window].astype(np.float64)
+                    smpl_trans[:, [0, 2]] -= start
+                smpl_poses = None if grounded.smpl_poses is None else grounded.smpl_poses[i: i + window]
                 windows.append(Window(meta, joints, feats.mfcc[k: k + window], feats.chroma[k: k + window],
                                       feats.onset[k: k + window], feats.beat[k: k + window], world,
                                       grounded.contact[i: i + window], grounded.rotations_6d[i: i + window],
-                                      feet, world_feet, planted, probability))
+                                      feet, world_feet, planted, probability, smpl_poses, smpl_trans))
     return windows, counts
 
 

@@ -138,6 +138,24 @@ def style_stats(metas: list[dict]) -> list[dict]:
             for style, r in sorted(counts.items(), key=lambda kv: (-(kv[1]["train"] + kv[1]["val"]), kv[0]))]
 
 
+# The `smpl` config: what a trainer of EDGE or Bailando reads, with the music and provenance beside it.
+SMPL_COLUMNS = ("window_id", "video_id", "clip_id", "start_time", "smpl_poses", "smpl_trans", "smpl_scaling",
+                "contact", "planted", "mfcc", "beat", "beat_frames", "tempo", "licence")
+SMPL_TEXT = """## SMPL skeleton (config `smpl`)
+
+`smpl_poses`, `smpl_trans` and `smpl_scaling` hold each dancer's motion on the SMPL 24-joint
+kinematic tree, in AIST++'s layout, so the field's music-to-dance trainers (EDGE, Bailando, FineDance)
+read it as they read AIST++ (`dance3d export aistpp` writes their files). Forward kinematics: joint j
+sits at its parent's position plus the parent's world rotation times `smpl_scaling` x its rest offset;
+the rest offsets are the SMPL neutral body's as published with EDGE (`pipeline/motion/smpl/skeleton.py`
+names the source and commit; no SMPL model file is used or shipped). `smpl_trans` is the pelvis joint
+itself (EDGE's convention); with an SMPL body model's own forward pass, subtract its rest pelvis joint
+from `transl`. Rotations come from inverse kinematics on the world joints (`pipeline/motion/smpl/retarget.py`
+states the rule for each joint); joints nothing in a video sees (spine 1-3 split in thirds, toes, wrists,
+hands) follow stated rules. `datasets.load_dataset(<corpus folder>, "smpl")` loads these columns with the
+music and provenance. `dance3d eval smpl` reports how far forward kinematics lands from the world joints."""
+
+
 def hf_front_matter(splits: list[str], group_splits: list[str] | None = None) -> str:
     """Hugging Face dataset-card metadata: `datasets.load_dataset(<corpus folder>)` finds the
     splits that have shards (val is named `validation`, as the Hub names it); with group windows,
@@ -147,10 +165,12 @@ def hf_front_matter(splits: list[str], group_splits: list[str] | None = None) ->
                        for s in names)
 
     groups = f"- config_name: groups\n  data_files:\n{files('groups/', group_splits)}" if group_splits else ""
+    smpl = (f"- config_name: smpl\n  data_files:\n{files('', splits)}"
+            f"  columns: [{', '.join(SMPL_COLUMNS)}]\n") if splits else ""
     return ("---\npretty_name: dance3d corpus\nlicense: other\nlicense_name: per-source\n"
             "license_details: every window inherits the licence of its source video (columns licence, url)\n"
             "tags:\n- dance\n- motion-capture\n- 3d-human-pose\n- music\n"
-            f"configs:\n- config_name: default\n  data_files:\n{files('', splits)}{groups}---\n\n")
+            f"configs:\n- config_name: default\n  data_files:\n{files('', splits)}{smpl}{groups}---\n\n")
 
 
 def _groups_text(groups: dict | None, window: float, hop: float, fps: float) -> str:
@@ -252,6 +272,9 @@ PyTorch loader is `pipeline.train.dataset.WindowDataset`. Each file's key-value 
 | rotations_6d | {round(window * fps)} x 23 x 6 float32 | local joint rotations on the clip's skeleton, 6D (first two columns of each 3 x 3 rotation), joints in the order of `dance3d export bvh`'s hierarchy (file metadata `rotation_joints`); T-pose rest, y up, facing +z |
 | bone_lengths | 16 float32 | the clip's skeleton (metres; bones in the order of the file metadata `bones`) |
 | camera_pitch, camera_roll | float32 | the camera's estimated tilt (degrees; pitch > 0: looking down), from the body's long axis over the clip |
+| smpl_poses | {round(window * fps)} x 72 float32 | the same motion on the SMPL 24-joint tree: local rotations, axis-angle (radians), joint-major, AIST++'s `smpl_poses` (see "SMPL skeleton" below) |
+| smpl_trans | {round(window * fps)} x 3 float32 | the SMPL pelvis joint, metres, like world_joints (y up, floor 0, x/z from the window's first root) |
+| smpl_scaling | float32 | the scale of SMPL's rest offsets for this dancer (AIST++'s `smpl_scaling`, here about 1: metres) |
 | mfcc | {round(window * fps)} x 39 float32 | MFCC-13, deltas, delta-deltas |
 | chroma | {round(window * fps)} x 12 float32 | chroma (STFT) |
 | onset | {round(window * fps)} float32 | onset strength |
@@ -278,6 +301,8 @@ resampled with a cubic spline. Audio was loudness-normalised to EBU R128 before 
 floor, each dancer scaled onto it and placed where their planted feet are seen.
 
 {_groups_text(groups, window, hop, fps)}
+
+{SMPL_TEXT}
 
 ## Motion–music alignment
 

@@ -18,14 +18,16 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 
-SCHEMA_VERSION = 7  # 2: beat, downbeat and motion-beat frames, alignment scores; any frame rate. 3: tags.
+SCHEMA_VERSION = 8  # 2: beat, downbeat and motion-beat frames, alignment scores; any frame rate. 3: tags.
 #                    4: world-frame joints, root path, foot contact, bone lengths, 6D rotations, camera pitch/roll
 #                    5: feet, world_feet. 6: contact from the learned contact model, planted, contact_probability
 #                    7: group_window_id (the group window, corpus/groups.py, that holds this one's dancer)
+#                    8: smpl_poses, smpl_trans, smpl_scaling (the motion on the SMPL tree, motion/smpl)
 FPS = 24  # the default corpus rate
 MFCC_DIMS = 39
 # A window built without beat analysis (tests, benchmarks) has no beats: empty lists, NaN scores.
-WORLD_DEFAULTS = {"camera_pitch": float("nan"), "camera_roll": float("nan"), "group_window_id": ""}
+WORLD_DEFAULTS = {"camera_pitch": float("nan"), "camera_roll": float("nan"), "group_window_id": "",
+                  "smpl_scaling": float("nan")}
 BEAT_DEFAULTS = {"beat_frames": [], "downbeat_frames": [], "motion_beat_frames": [], "beat_align_score": float("nan"),
                  "beat_f1": float("nan")}
 CHROMA_DIMS = 12
@@ -66,6 +68,9 @@ def corpus_schema(window: int) -> pa.Schema:
         ("rotations_6d", fixed(fixed(fixed(pa.float32(), 6), ROTATION_JOINTS), window)),
         ("bone_lengths", fixed(pa.float32(), BONES)),                         # the clip's one skeleton (m)
         ("camera_pitch", pa.float32()), ("camera_roll", pa.float32()),         # degrees, estimated per clip
+        ("smpl_poses", fixed(fixed(pa.float32(), 72), window)),  # SMPL's 24 local rotations, axis-angle (AIST++)
+        ("smpl_trans", fixed(fixed(pa.float32(), 3), window)),   # its pelvis joint, like world_joints
+        ("smpl_scaling", pa.float32()),                           # the SMPL rest offsets' scale for this dancer
         ("mfcc", fixed(fixed(pa.float32(), MFCC_DIMS), window)),
         ("chroma", fixed(fixed(pa.float32(), CHROMA_DIMS), window)),
         ("onset", fixed(pa.float32(), window)),
@@ -94,6 +99,8 @@ class Window:
     world_feet: np.ndarray | None = None  # W x 4 x 3 the same in the world frame
     planted: np.ndarray | None = None     # W x 4 planted heels and toe tips (None: zeros)
     contact_probability: np.ndarray | None = None  # W x 4 (None: NaN)
+    smpl_poses: np.ndarray | None = None  # W x 72 (None: NaN)
+    smpl_trans: np.ndarray | None = None  # W x 3, the frame of world (None: NaN)
 
 
 def tensor_column(values: np.ndarray, dtype: pa.DataType, shape: tuple[int, ...]) -> pa.Array:
@@ -107,7 +114,7 @@ def tensor_column(values: np.ndarray, dtype: pa.DataType, shape: tuple[int, ...]
 def windows_table(windows: list[Window], window: int) -> pa.Table:
     schema = corpus_schema(window)
     tensors = ("motion", "mfcc", "chroma", "onset", "beat", "world_joints", "root", "contact", "rotations_6d",
-               "bone_lengths", "feet", "world_feet", "planted", "contact_probability")
+               "bone_lengths", "feet", "world_feet", "planted", "contact_probability", "smpl_poses", "smpl_trans")
     defaults = {**BEAT_DEFAULTS, **WORLD_DEFAULTS}
     scalars = {name: [w.meta.get(name, defaults[name]) if name in defaults else w.meta[name] for w in windows]
                for name in schema.names if name not in tensors}
@@ -140,6 +147,8 @@ def windows_table(windows: list[Window], window: int) -> pa.Table:
         "planted": tensor_column(np.nan_to_num(stack("planted", (window, 4))).astype(np.int8), pa.int8(), (window, 4)),
         "contact_probability": tensor_column(stack("contact_probability", (window, 4)).astype(np.float32), pa.float32(),
                                        (window, 4)),
+        "smpl_poses": tensor_column(stack("smpl_poses", (window, 72)).astype(np.float32), pa.float32(), (window, 72)),
+        "smpl_trans": tensor_column(stack("smpl_trans", (window, 3)).astype(np.float32), pa.float32(), (window, 3)),
     }
     columns = [arrays[f.name] if f.name in arrays else pa.array(scalars[f.name], f.type) for f in schema]
     return pa.Table.from_arrays(columns, schema=schema)

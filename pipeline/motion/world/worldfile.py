@@ -7,13 +7,15 @@ planted feet pinned; schema 2, before which x/z were from the clip's first root 
 feet (left heel, right heel, left toe tip, right toe tip x 3, the same frame; NaN without feet),
 contact (left, right foot on the floor), planted (each foot point planted), contact_probability
 (the contact model's; NaN without one), rotations_6d (local joint rotations on the clip's
-skeleton, ``rotations.BVH_JOINTS`` order).
+skeleton, ``rotations.BVH_JOINTS`` order), smpl_poses and smpl_trans (the same motion on the SMPL
+tree, ``pipeline.motion.smpl.retarget``: 24 local rotations as axis-angle, the pelvis joint's path;
+schema 3).
 
 Per clip, in the file's metadata (``clips``): bone_lengths, camera pitch and roll, the largest
 limb-length CV before the one skeleton and how far it moved the joints, skating before and after
-pinning, the contact share, whether contact was learned, and the scale that put the clip on the
-scene's floor (``scene_scale``). Per segment (``scene``): the scene's camera pitch and roll, whether
-its clips share a floor, how many clips.
+pinning, the contact share, whether contact was learned, the scale that put the clip on the
+scene's floor (``scene_scale``) and the SMPL skeleton's (``smpl_scaling``). Per segment (``scene``):
+the scene's camera pitch and roll, whether its clips share a floor, how many clips.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import pyarrow.parquet as pq
 from pipeline.core.storage import column_array, fixed_list, require_schema, write_parquet
 from pipeline.motion.world.grounding import ROTATION_JOINTS, GroundedClip
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3  # 3: smpl_poses, smpl_trans and the clip's smpl_scaling
 ROTATIONS = len(ROTATION_JOINTS)
 WORLD_SCHEMA = pa.schema([
     ("clip_id", pa.string()),
@@ -42,6 +44,8 @@ WORLD_SCHEMA = pa.schema([
     ("planted", pa.list_(pa.int8(), 4)),
     ("contact_probability", pa.list_(pa.float32(), 4)),
     ("rotations_6d", pa.list_(pa.float32(), ROTATIONS * 6)),
+    ("smpl_poses", pa.list_(pa.float32(), 72)),
+    ("smpl_trans", pa.list_(pa.float32(), 3)),
 ])
 
 
@@ -58,20 +62,26 @@ class WorldClip:
     contact_probability: np.ndarray | None  # n x 4 (None: no contact model)
     rotations_6d: np.ndarray          # n x ROTATIONS x 6
     facts: dict                       # bone_lengths, pitch_deg, roll_deg, cv_before, fit_moved_mm, ...
+    smpl_poses: np.ndarray | None = None   # n x 72 axis-angle on the SMPL tree (None: not retargeted)
+    smpl_trans: np.ndarray | None = None   # n x 3 its pelvis joint (facts["smpl_scaling"]: its scale)
 
 
 def world_clip(clip_id: str, track_id: int, frame: np.ndarray, time: np.ndarray, grounded: GroundedClip,
                scene_scale: float = 1.0) -> WorldClip:
-    """A grounded clip as the world file stores it."""
+    """A grounded clip as the world file stores it, retargeted onto the SMPL tree."""
+    from pipeline.motion.smpl.retarget import retarget
+
+    smpl = retarget(grounded.joints, grounded.feet)
     facts = {"bone_lengths": [round(float(x), 6) for x in grounded.bone_lengths],
              "pitch_deg": round(grounded.pitch_deg, 2), "roll_deg": round(grounded.roll_deg, 2),
              "bone_cv_before": round(grounded.cv_before, 5), "fit_moved_mm": round(1000 * grounded.fit_moved, 2),
              "contact_share": round(float(grounded.contact.mean()), 4),
              "contact_learned": grounded.planted is not None,
              "skate_before_m_s": round(grounded.skate_before, 5), "skate_after_m_s": round(grounded.skate_after, 5),
-             "scene_scale": round(float(scene_scale), 4)}
+             "scene_scale": round(float(scene_scale), 4), "smpl_scaling": round(smpl.scale, 6)}
     return WorldClip(clip_id, track_id, frame, time, grounded.joints, grounded.feet, grounded.contact,
-                     grounded.planted, grounded.contact_probability, grounded.rotations_6d, facts)
+                     grounded.planted, grounded.contact_probability, grounded.rotations_6d, facts,
+                     smpl.poses, smpl.trans)
 
 
 def _table(clips: list[WorldClip]) -> pa.Table:
@@ -94,6 +104,8 @@ def _table(clips: list[WorldClip]) -> pa.Table:
                    .astype(np.int8), pa.int8()),
         fixed_list(cat([c.contact_probability for c in clips], (4,))),
         fixed_list(cat([c.rotations_6d for c in clips], (ROTATIONS * 6,))),
+        fixed_list(cat([c.smpl_poses for c in clips], (72,))),
+        fixed_list(cat([c.smpl_trans for c in clips], (3,))),
     ], schema=WORLD_SCHEMA)
 
 
@@ -115,7 +127,8 @@ def read_world(path: Path) -> list[WorldClip]:
             "feet": column_array(table, "feet", (4, 3)), "contact": column_array(table, "contact", (2,), np.int8),
             "planted": column_array(table, "planted", (4,), np.int8),
             "prob": column_array(table, "contact_probability", (4,)),
-            "rot": column_array(table, "rotations_6d", (ROTATIONS, 6))}
+            "rot": column_array(table, "rotations_6d", (ROTATIONS, 6)),
+            "poses": column_array(table, "smpl_poses", (72,)), "trans": column_array(table, "smpl_trans", (3,))}
     clips = []
     for clip_id in dict.fromkeys(ids):
         rows = np.flatnonzero(ids == clip_id)
@@ -125,6 +138,6 @@ def read_world(path: Path) -> list[WorldClip]:
         planted = cols["planted"][rows].astype(bool) if facts.get("contact_learned") else None
         clips.append(WorldClip(str(clip_id), int(cols["track"][rows[0]]), cols["frame"][rows], cols["time"][rows],
                                cols["joints"][rows], feet, cols["contact"][rows].astype(bool), planted, prob,
-                               cols["rot"][rows], facts))
+                               cols["rot"][rows], facts, cols["poses"][rows], cols["trans"][rows]))
     return clips
 
