@@ -111,7 +111,7 @@ def _parser() -> argparse.ArgumentParser:
     render.add_argument("--world", action="store_true",
                         help="draw the clip grounded in the world: y up over a floor grid, its path, feet in contact "
                              "(green), one skeleton, feet pinned (as the corpus's world_joints)")
-    export = sub.add_parser("export", help="export motion for animation tools (bvh)")
+    export = sub.add_parser("export", help="export motion for animation tools (bvh) and trainers (aistpp)")
     export_sub = export.add_subparsers(dest="format", required=True, metavar="FORMAT")
     bvh = export_sub.add_parser(
         "bvh", help="one clip as a BVH file (world frame, y up, metres, one skeleton)",
@@ -128,6 +128,17 @@ def _parser() -> argparse.ArgumentParser:
     bvh.add_argument("--all", action="store_true",
                      help="every clip of the file, one BVH per dancer (<clip_id>.bvh in the folder OUT), all in the "
                           "segment's one scene: import them together and the dancers stand where they danced")
+    aistpp = export_sub.add_parser(
+        "aistpp", help="every dancer's clip on the SMPL skeleton in AIST++'s layout (EDGE, Bailando)",
+        description="Write the corpus's dancers (data/world, data/audio) as AIST++ lays out its motions: "
+                    "motions/<sequence>.pkl (smpl_poses T x 72 axis-angle, smpl_trans T x 3 metres y up, "
+                    "smpl_scaling), wavs/<sequence>.wav (EDGE), all_musics/<music>.wav (Bailando), "
+                    "splits/crossmodal_{train,val,test}.txt (the corpus's split by video), names.csv "
+                    "(each sequence's clip, source and licence). EDGE: copy the three split files into "
+                    "EDGE's data/splits and run its data/create_dataset.py --dataset_folder OUT.",
+        epilog="sequence names follow AIST++'s g.._s.._cAll_d.._m.._ch.. (a hash of the clip id: stable)")
+    aistpp.add_argument("out", type=Path, help="the folder to write")
+    aistpp.add_argument("--fps", type=float, default=60.0, help="frame rate of the motions (AIST++: 60)")
     sample = sub.add_parser("sample", help="generate dance for a music file with the trained model",
                             description="Continue a seed pose (the first frames of a corpus window) for N frames "
                                         "to the music of an audio file, with models/tsmt.pt, and write a motion "
@@ -241,6 +252,17 @@ def _parser() -> argparse.ArgumentParser:
                     "agree no better in sync than out of it (or the dancers do not dance the same steps).")
     sync.add_argument("world", type=Path, help="a world file, data/world/<segment_id>.parquet")
     sync.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
+    smpl = evaluate_sub.add_parser(
+        "smpl", help="what retargeting onto the SMPL skeleton keeps: joint error, foot sliding, joint ranges",
+        description="Retarget every clip of data/world (or, with --mocap, every sequence of a motion-capture folder "
+                    "with heels and toes: real proportions, no lifting error) onto the SMPL tree and compare forward "
+                    "kinematics (SMPL rest offsets x the clip's scale) with the joints: per mapped point median and "
+                    "95th percentile (mm), foot sliding of ankles and balls of the feet where they stand before and "
+                    "after (mm a frame at 30 fps), frames with a joint outside its human range; beside it the "
+                    "unrotated rest skeleton at the hips. Protocol: pipeline/motion/smpl/evaluate.py.")
+    smpl.add_argument("--mocap", type=Path, default=None, help="a motion-capture folder instead of data/world")
+    smpl.add_argument("--seconds", type=float, default=0.0, help="with --mocap, the first seconds of each (0: all)")
+    smpl.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
     models = sub.add_parser("models", help="model utilities (fetch, convert-videopose3d)")
     models_sub = models.add_subparsers(dest="action", required=True, metavar="ACTION")
     fetch = models_sub.add_parser(
@@ -322,6 +344,11 @@ def _eval(root: Path, args: argparse.Namespace) -> int:
             from pipeline.motion.world.group_eval import sync_pairs
 
             result = sync_pairs(args.world)
+        elif args.what == "smpl":
+            from pipeline.motion.smpl.evaluate import capture_clips, evaluate, world_clips
+            from pipeline.motion.smpl.evaluate import format_report as format_table
+
+            result = evaluate(capture_clips(args.mocap, args.seconds) if args.mocap else world_clips(root))
         elif args.what == "segments":
             from pipeline.ingest.propose import evaluate_project, format_table
 
@@ -399,6 +426,8 @@ def main(argv: list[str] | None = None) -> int:
         return _sample(root, args)
     if args.command == "render":
         return _render(root, args)
+    if args.command == "export" and args.format == "aistpp":
+        return _export_aistpp(root, args)
     if args.command == "export":
         return _export_bvh(args)
     if args.command == "eval":
@@ -617,6 +646,21 @@ def _export_bvh(args: argparse.Namespace) -> int:
         out = args.out / f"{clip.clip_id}.bvh"
         print(f"wrote {out}: starts at frame {int(clip.frame[0])} ({clip.time[0]:.2f} s; in Blender, move its action "
               f"there), scale {scale:.3f} onto the scene's floor; " + _write_bvh(grounded, fps, out))
+    return 0
+
+
+def _export_aistpp(root: Path, args: argparse.Namespace) -> int:
+    from pipeline.core.params import load_params, stage_params
+    from pipeline.export.aistpp import export
+
+    val_fraction = float(stage_params(load_params(root / "params.yaml"), "shard").get("val_fraction", 0.2))
+    sequences = export(root, args.out, val_fraction, args.fps)
+    if not sequences:
+        print("dance3d export aistpp: no clip has SMPL motion and audio: run `dvc repro ground audio`", file=sys.stderr)
+        return 2
+    frames = sum(len(s.poses) for s in sequences)
+    print(f"wrote {args.out}: {len(sequences)} sequences ({sum(s.split == 'train' for s in sequences)} train), "
+          f"{frames} frames at {args.fps:g} fps ({frames / args.fps / 60:.1f} minutes); names.csv maps them to clips")
     return 0
 
 

@@ -107,6 +107,9 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
 
     loaded = datasets.load_dataset(str(root / "data/corpus"), cache_dir=str(tmp_path / "hf"))
     assert sum(len(split) for split in loaded.values()) == windows and "train" in loaded
+    smpl = datasets.load_dataset(str(root / "data/corpus"), "smpl", cache_dir=str(tmp_path / "hf"))["train"]
+    assert np.array(smpl[0]["smpl_poses"]).shape == (8 * 24, 72) and 0.7 < smpl[0]["smpl_scaling"] < 1.3
+    _exports_aistpp(root, tmp_path / "aistpp")
     beats = pq.read_table(shards[0], columns=["beat", "beat_frames", "motion_beat_frames"]).to_pylist()[0]
     assert beats["beat_frames"] == [i for i, flag in enumerate(beats["beat"]) if flag]  # flags and frames agree
     assert beats["motion_beat_frames"]
@@ -139,3 +142,24 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
                             capture_output=True, text=True, check=True).stdout
     assert "download: 4 sources, 4 ok" in status
     assert "trim: 4 segments from 3 videos" in status
+
+
+def _exports_aistpp(root: Path, out: Path) -> None:
+    """`dance3d export aistpp`: AIST++'s files, read as AIST++'s loader and EDGE's split step read them."""
+    import pickle
+    import wave
+
+    done = subprocess.run([sys.executable, "-m", "pipeline.cli", "export", "aistpp", str(out)], cwd=root,
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    names = (out / "splits/crossmodal_train.txt").read_text().split() + (
+        out / "splits/crossmodal_test.txt").read_text().split()
+    assert len(names) == 2  # the two dancers with music (the silent clip has none)
+    for name in names:
+        genre, situation, camera, dancer, music, choreo = name.split("_")  # AIST++'s name, as Bailando splits it
+        assert camera == "cAll" and music.startswith("m") and (out / "all_musics" / f"{music}.wav").exists()
+        data = pickle.loads((out / "motions" / f"{name}.pkl").read_bytes())
+        poses, trans, scaling = data["smpl_poses"], data["smpl_trans"], data["smpl_scaling"]
+        assert poses.shape[1] == 72 and trans.shape == (len(poses), 3) and scaling.shape == (1,)
+        with wave.open(str(out / "wavs" / f"{name}.wav")) as w:  # EDGE slices music and motion together
+            assert w.getframerate() == 44100 and abs(w.getnframes() / 44100 - len(poses) / 60) < 0.01

@@ -1,0 +1,164 @@
+"""``dance3d eval smpl``: how much of the world motion survives retargeting onto the SMPL tree.
+
+Protocol: every clip of the world files (the corpus's motion), or every sequence of a motion
+capture folder (its own joints, y up, at its own rate: real human proportions with no lifting
+error), is retargeted (``retarget.retarget``) and forward kinematics of the result (the SMPL rest
+offsets times the clip's scale) is compared with the joints it came from:
+
+- per mapped point (``skeleton.MAPPED``, the hips' midpoint, the balls of the feet), the distance
+  in mm: median and 95th percentile over frames, pooled over clips;
+- foot sliding (mm a frame at 30 fps) of the ankles and balls of the feet on the frames where each
+  stands (the world file's planted flags; the capture's own contact), before (the input's points)
+  and after (SMPL's joints);
+- frames on which a joint leaves its human range (``checks.RANGES``, ``checks.HINGES``).
+
+Baseline beside the figures: the SMPL rest skeleton placed at each frame's hips with no rotation
+(what a trainer would get from an exporter that wrote no poses): its mapped-point error.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.motion.smpl import checks
+from pipeline.motion.smpl.kinematics import forward
+from pipeline.motion.smpl.retarget import SmplMotion, retarget
+
+LIMBS = ("knees", "ankles", "feet", "shoulders", "elbows", "wrists")
+
+
+@dataclass(frozen=True)
+class Clip:
+    source: str
+    name: str
+    joints: np.ndarray            # T x 17 x 3, y up
+    feet: np.ndarray | None       # T x 4 x 3
+    standing: np.ndarray | None   # T x 4: ankles and balls standing (checks.foot_planted's order)
+    fps: float
+
+
+def world_clips(root: Path) -> list[Clip]:
+    """The clips of ``root``'s data/world files."""
+    from pipeline.core.paths import WORLD
+    from pipeline.core.storage import item_files, read_meta
+    from pipeline.motion.world.worldfile import read_world
+
+    out = []
+    for path in item_files(root / WORLD):
+        fps = float(read_meta(path).get("fps", 24.0))
+        for c in read_world(path):
+            out.append(Clip(path.stem, c.clip_id, c.joints, c.feet, checks.foot_planted(c.contact, c.planted), fps))
+    return out
+
+
+def capture_clips(mocap: Path, seconds: float = 0.0) -> list[Clip]:
+    """The sequences of a motion capture folder (``sources.load_folder``) with heels and toes."""
+    from pipeline.motion.mocap.sources import first_seconds, load_folder
+    from pipeline.motion.world.contact import capture_contact
+
+    out = []
+    for seq in load_folder(mocap):
+        if seq.feet is None:
+            continue
+        if seconds:
+            seq = first_seconds(seq, seconds)
+        planted = capture_contact(seq.feet, seq.fps)
+        standing = np.stack([planted[:, 0], planted[:, 1], planted[:, 2], planted[:, 3]], 1)
+        out.append(Clip(seq.source, seq.name, seq.h36m, seq.feet, standing, seq.fps))
+    return out
+
+
+def _rest_at_hips(smpl: SmplMotion) -> np.ndarray:
+    """The baseline: the rest skeleton, unrotated, at the retargeted pelvis."""
+    frames = len(smpl.trans)
+    return forward(np.broadcast_to(np.eye(3), (frames, 24, 3, 3)), smpl.trans, smpl.scale)
+
+
+def score_clip(clip: Clip) -> dict:
+    smpl = retarget(clip.joints, clip.feet)
+    errors = checks.joint_errors(smpl, clip.joints, clip.feet)
+    baseline = checks.joint_errors(SmplMotion(smpl.local, smpl.trans, smpl.scale, _rest_at_hips(smpl)),
+                                   clip.joints, clip.feet)
+    before = checks.world_foot_points(clip.joints, clip.feet)
+    ranges = checks.joint_ranges(smpl)
+    row = {"source": clip.source, "clip": clip.name, "frames": len(clip.joints), "scale": round(smpl.scale, 4),
+           "errors": errors, "baseline": baseline,
+           "sliding_before": checks.sliding(before, clip.standing, clip.fps) if before is not None else float("nan"),
+           "sliding_after": checks.sliding(checks.foot_points(smpl), clip.standing, clip.fps)
+           if before is not None else float("nan"),
+           "outside": {k: v for k, v in ranges.outside.items() if v}}
+    return row
+
+
+def _pooled(rows: list[dict], key: str) -> dict:
+    joints = dict.fromkeys(k for r in rows for k in r[key])
+    out = {}
+    for name in joints:
+        values = 1000 * np.concatenate([r[key][name] for r in rows if name in r[key]])
+        out[name] = _figures(values)
+    out["all"] = _figures(1000 * np.concatenate([v for r in rows for v in r[key].values()]))
+    return out
+
+
+def _figures(values: np.ndarray) -> dict:
+    return {"median_mm": round(float(np.median(values)), 1), "p95_mm": round(float(np.percentile(values, 95)), 1)}
+
+
+def summarise(rows: list[dict]) -> dict:
+    """Pooled errors, sliding and range counts over ``rows``."""
+    frames = sum(r["frames"] for r in rows)
+    outside: dict[str, int] = {}
+    for r in rows:
+        for k, v in r["outside"].items():
+            outside[k] = outside.get(k, 0) + v
+
+    def mean(key: str) -> float:
+        values = [r[key] for r in rows if r[key] == r[key]]
+        return round(float(np.mean(values)), 3) if values else float("nan")
+
+    return {"clips": len(rows), "frames": frames, "error": _pooled(rows, "errors"),
+            "baseline_rest_pose": _pooled(rows, "baseline")["all"],
+            "sliding_before_mm": mean("sliding_before"), "sliding_after_mm": mean("sliding_after"),
+            "frames_outside_range": outside, "scale_median": round(float(np.median([r["scale"] for r in rows])), 4)}
+
+
+def evaluate(clips: list[Clip]) -> dict:
+    """The figures over all clips and per source, and one line per clip."""
+    rows = [score_clip(c) for c in clips]
+    if not rows:
+        return {"clips": 0}
+    result = {"all": summarise(rows)}
+    for source in dict.fromkeys(r["source"] for r in rows):
+        result[source] = summarise([r for r in rows if r["source"] == source])
+    result["per_clip"] = [{"clip": r["clip"], "frames": r["frames"], "scale": r["scale"],
+                           "median_mm": round(float(1000 * np.median(np.concatenate(list(r["errors"].values())))), 1),
+                           "sliding_before_mm": round(r["sliding_before"], 3),
+                           "sliding_after_mm": round(r["sliding_after"], 3), "outside": r["outside"]} for r in rows]
+    return result
+
+
+def format_report(result: dict) -> str:
+    """A table a person reads: one line per source, then the pooled per-joint figures."""
+    if not result.get("clips", 1):
+        return "no clips to measure"
+    lines = [f"{'source':28s} {'clips':>5s} {'median mm':>9s} {'p95 mm':>7s} {'rest mm':>7s} "
+             f"{'slide before':>12s} {'after':>6s} {'frames outside range':>20s}"]
+    for source, s in result.items():
+        if source == "per_clip":
+            continue
+        error = s["error"]["all"]
+        lines.append(f"{source:28s} {s['clips']:5d} {error['median_mm']:9.1f} {error['p95_mm']:7.1f} "
+                     f"{s['baseline_rest_pose']['median_mm']:7.1f} {s['sliding_before_mm']:12.3f} "
+                     f"{s['sliding_after_mm']:6.3f} {sum(s['frames_outside_range'].values()):>8d} of {s['frames']}")
+    lines.append("")
+    lines.append("per point (all clips): median / p95 mm")
+    for name, e in result["all"]["error"].items():
+        if name != "all":
+            lines.append(f"  {name:16s} {e['median_mm']:7.1f} {e['p95_mm']:7.1f}")
+    if result["all"]["frames_outside_range"]:
+        lines.append("frames outside range: " + ", ".join(f"{k} {v}" for k, v in
+                                                          result["all"]["frames_outside_range"].items()))
+    return "\n".join(lines)
