@@ -23,13 +23,14 @@ from __future__ import annotations
 import csv
 import hashlib
 import pickle
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from pipeline.core.paths import AUDIO, SEGMENTS, WORLD
+from pipeline.core.paths import AUDIO, RAW, SEGMENTS, WORLD
 from pipeline.core.storage import atomic_path, item_files
 from pipeline.corpus.windows import split_of
 from pipeline.ingest.catalog import read_index, read_ledger
@@ -112,17 +113,16 @@ def write_wav(path: Path, flac: Path, start: float, seconds: float) -> None:
 def export(root: Path, out: Path, val_fraction: float, fps: float = AIST_FPS, genre: str = "DN") -> list[Sequence]:
     """Write the AIST++ layout of the corpus under ``out``; the sequences written."""
     sequences = corpus_sequences(root, val_fraction, fps, genre)
-    ledger = {r["video_id"]: r for r in read_ledger(root / "data/raw").values()}
+    ledger = {r["video_id"]: r for r in read_ledger(root / RAW).values()}
     for folder in ("motions", "wavs", "all_musics", "splits"):
         (out / folder).mkdir(parents=True, exist_ok=True)
     for seq in sequences:
         data = {"smpl_poses": seq.poses, "smpl_trans": seq.trans, "smpl_scaling": np.array([seq.scaling], np.float32)}
         with atomic_path(out / "motions" / f"{seq.name}.pkl") as tmp:
             tmp.write_bytes(pickle.dumps(data, protocol=pickle.HIGHEST_PROTOCOL))
-        seconds = len(seq.poses) / seq.fps
-        flac = root / AUDIO / f"{seq.segment_id}.flac"
-        write_wav(out / "wavs" / f"{seq.name}.wav", flac, seq.start_time, seconds)
-        write_wav(out / "all_musics" / f"{seq.music}.wav", flac, seq.start_time, seconds)
+        wav = out / "wavs" / f"{seq.name}.wav"
+        write_wav(wav, root / AUDIO / f"{seq.segment_id}.flac", seq.start_time, len(seq.poses) / seq.fps)
+        shutil.copyfile(wav, out / "all_musics" / f"{seq.music}.wav")  # Bailando looks music up by its id
     for split, files in SPLIT_FILES.items():
         names = sorted(s.name for s in sequences if s.split == split)
         for name in files:

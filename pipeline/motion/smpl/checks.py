@@ -65,7 +65,7 @@ def foot_planted(contact: np.ndarray, planted: np.ndarray | None) -> np.ndarray:
     heel), a ball with its planted toe tip (or its foot's contact without the contact model)."""
     if planted is None:
         return np.concatenate([contact, contact], axis=1).astype(bool)
-    return np.stack([planted[:, 0], planted[:, 1], planted[:, 2], planted[:, 3]], axis=1).astype(bool)
+    return planted.astype(bool)  # heels stand for the ankles, toe tips for the balls: the same order
 
 
 @dataclass(frozen=True)

@@ -65,8 +65,7 @@ def capture_clips(mocap: Path, seconds: float = 0.0) -> list[Clip]:
             continue
         if seconds:
             seq = first_seconds(seq, seconds)
-        planted = capture_contact(seq.feet, seq.fps)
-        standing = np.stack([planted[:, 0], planted[:, 1], planted[:, 2], planted[:, 3]], 1)
+        standing = checks.foot_planted(np.zeros((seq.frames, 2), bool), capture_contact(seq.feet, seq.fps))
         out.append(Clip(seq.source, seq.name, seq.h36m, seq.feet, standing, seq.fps))
     return out
 

@@ -193,15 +193,10 @@ def retarget(joints: np.ndarray, feet: np.ndarray | None = None) -> SmplMotion:
 
 def _swing(have: np.ndarray, want: np.ndarray, most: float = 180.0) -> np.ndarray:
     """T x 3 x 3 smallest rotations taking each vector ``have`` to the direction of ``want``, or
-    ``most`` degrees of the way there."""
+    ``most`` degrees of the way there (``mocap.skeleton.smallest_rotation`` takes one rest vector)."""
+    from scipy.spatial.transform import Rotation
+
     have, want = unit(have), unit(want)
     axis = np.cross(have, want)
-    # Rodrigues' formula, one axis per frame (mocap.skeleton.smallest_rotation takes one rest vector).
     angle = np.minimum(np.arctan2(np.linalg.norm(axis, axis=-1), (have * want).sum(-1)), np.radians(most))
-    s, c = np.sin(angle), np.cos(angle)
-    k = unit(axis)
-    kx = np.zeros((len(k), 3, 3))
-    kx[:, 0, 1], kx[:, 0, 2], kx[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
-    kx[:, 1, 0], kx[:, 2, 0], kx[:, 2, 1] = k[:, 2], -k[:, 1], k[:, 0]
-    return np.eye(3) + s[:, None, None] * kx + (1 - c)[:, None, None] * (kx @ kx)
-
+    return Rotation.from_rotvec(unit(axis) * angle[:, None]).as_matrix()
