@@ -654,7 +654,11 @@ def _export_aistpp(root: Path, args: argparse.Namespace) -> int:
     from pipeline.export.aistpp import export
 
     val_fraction = float(stage_params(load_params(root / "params.yaml"), "shard").get("val_fraction", 0.2))
-    sequences = export(root, args.out, val_fraction, args.fps)
+    try:
+        sequences = export(root, args.out, val_fraction, args.fps)
+    except Dance3dError as exc:
+        print(f"dance3d: {exc}", file=sys.stderr)
+        return 2
     if not sequences:
         print("dance3d export aistpp: no clip has SMPL motion and audio: run `dvc repro ground audio`", file=sys.stderr)
         return 2

@@ -27,3 +27,26 @@ def test_24_to_60_fps_keeps_every_source_frame_and_slerps_between():
     assert np.allclose(path[:, 0], np.linspace(0, 1, 61))
     knee = Rotation.from_rotvec(out[:, 12:15]).magnitude()
     assert np.all(np.diff(knee) > 0)
+
+
+def test_a_world_file_of_an_older_schema_gets_one_line_naming_it_and_the_fix(tmp_path, capsys):
+    import shutil
+
+    import pyarrow as pa
+
+    from pipeline.cli import main
+    from pipeline.core.storage import write_parquet
+    from pipeline.ingest.catalog import INDEX_SCHEMA, write_index
+
+    row = {f.name: None for f in INDEX_SCHEMA}
+    row.update(segment_id="vid_000", video_id="vid", start=0.0, end=2.0, fps=24.0, frames=48)
+    write_index(tmp_path / "data/segments", [row], params={})
+    (tmp_path / "data/audio").mkdir(parents=True)
+    (tmp_path / "data/audio/vid_000.flac").write_bytes(b"")
+    write_parquet(pa.table({"clip_id": pa.array([], pa.string())}), tmp_path / "data/world/vid_000.parquet",
+                  schema_version=2, params={})
+    shutil.copy("params.yaml", tmp_path / "params.yaml")
+    assert main(["--root", str(tmp_path), "export", "aistpp", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"dance3d: {tmp_path / 'data/world/vid_000.parquet'}: world file schema 2, this dance3d reads "
+                   "schema 3: re-run the ground stage"]
