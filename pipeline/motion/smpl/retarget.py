@@ -55,11 +55,15 @@ class SmplMotion:
         return to_axis_angle(self.local)
 
 
+def _square(v: np.ndarray, to: np.ndarray) -> np.ndarray:
+    """Vectors ``v`` made square to the unit vectors ``to``, of length 1."""
+    return unit(v - (v * to).sum(-1, keepdims=True) * to)
+
+
 def _frame(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(..., 3, 3) orthonormal frames with columns a, b made square to a, and a x b."""
     a = unit(np.asarray(a, np.float64))
-    b = np.asarray(b, np.float64)
-    b = unit(b - (b * a).sum(-1, keepdims=True) * a)
+    b = _square(np.asarray(b, np.float64), a)
     return np.stack([a, b, np.cross(a, b)], axis=-1)
 
 
@@ -112,10 +116,6 @@ def two_bone(root: np.ndarray, end: np.ndarray, hinge: np.ndarray, upper: float,
     cos = np.clip((upper ** 2 + reach ** 2 - lower ** 2) / (2 * upper * reach), -1.0, 1.0)
     middle = root + upper * (cos * along + np.sqrt(1 - cos ** 2) * side)
     return middle, root + reach * along
-
-
-def _square(v: np.ndarray, to: np.ndarray) -> np.ndarray:
-    return unit(v - (v * to).sum(-1, keepdims=True) * to)
 
 
 def retarget(joints: np.ndarray, feet: np.ndarray | None = None) -> SmplMotion:
