@@ -6,7 +6,9 @@ a fresh temporary project holding a copy of the code under test, on a set of vid
 - ``demo``: the demo sources and segments of the code tree (local copies from DANCE3D_MEDIA);
 - ``long``: a long single-dancer video assembled from the shared clips (every dance and
   movement clip fitted into 1280 x 720, twice over, about 94 s) and a 20 s composite of five people (two dancers,
-  three seated musicians), each processed whole.
+  three seated musicians), each processed whole;
+- ``mixed``: the solo dancer with music and the three group-dance clips with music (a duet, a trio,
+  a line dance of four to six with bystanders and a panning camera), each processed whole.
 
 Per stage and in total it reports wall time, video-seconds per wall-second (of the segmented
 video the stages work on; download counts the downloaded duration), CPU use in cores
@@ -50,6 +52,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 STAGES = ("discover", "download", "propose_segments", "trim", "pose2d", "track", "clean", "train_lifter",
           "train_contact", "lift", "smooth", "resample", "ground", "audio", "shard")  # those a tree has
 NOT_PER_VIDEO = {"train_lifter", "train_contact"}
+MIXED_VIDEOS = ("dance_single_music_musepose.mp4", "group_duet_music.mp4", "group_trio_office_music.mp4",
+                "group_linedance_crowd_music.mp4")
 LONG_PARTS = ("dance_single_music_musepose.mp4", "movement_single_speech_taiji.mp4", "dance_solo_384x496_30fps.mp4")
 
 
@@ -87,6 +91,11 @@ def long_set(media: Path, out: Path) -> list[tuple[str, Path]]:
     ffmpeg("-i", str(silent), "-stream_loop", "-1", "-i", str(videos / "musicians_trio_music_raga.mp4"),
            "-map", "0:v", "-map", "1:a", "-c:v", "copy", "-c:a", "aac", "-shortest", str(group))
     return [("long_single", single), ("five_people", group)]
+
+
+def mixed_set(media: Path) -> list[tuple[str, Path]]:
+    """The solo and group dance clips as they are, each one source."""
+    return [(Path(name).stem, media / "videos" / name) for name in MIXED_VIDEOS]
 
 
 def make_project(code: Path, root: Path, which: str, long_videos: list[tuple[str, Path]]) -> Path:
@@ -261,7 +270,7 @@ def table(name: str, summary: dict) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--set", choices=("demo", "long"), default="demo", help="which videos (see above)")
+    parser.add_argument("--set", choices=("demo", "long", "mixed"), default="demo", help="which videos (see above)")
     parser.add_argument("--code", type=Path, action="append",
                         help="a code tree to run (repeatable; default: this checkout)")
     parser.add_argument("--runs", type=int, default=1, help="runs per code tree (medians are reported)")
@@ -274,7 +283,8 @@ def main() -> None:
     codes = [c.resolve() for c in (args.code or [Path(__file__).resolve().parents[1]])]
     work = Path(args.keep or tempfile.mkdtemp(prefix="dance3d-bench-"))
     work.mkdir(parents=True, exist_ok=True)
-    long_videos = long_set(Path(os.environ["DANCE3D_MEDIA"]), work) if args.set == "long" else []
+    media = Path(os.environ["DANCE3D_MEDIA"])
+    long_videos = {"long": lambda: long_set(media, work), "mixed": lambda: mixed_set(media)}.get(args.set, list)()
     runs: dict[int, list[dict]] = {i: [] for i in range(len(codes))}
     last_root: dict[int, Path] = {}
     for r in range(args.runs):
