@@ -102,7 +102,8 @@ def _parser() -> argparse.ArgumentParser:
                                         "as front and side views, with the segment's audio; or, with --group, a "
                                         "segment's scene: its video beside the floor seen from above, with every "
                                         "dancer where the ground stage put them (data/world) and their paths.",
-                            usage="dance3d render [--world] MOTION CLIP_ID OUT | dance3d render --group SEGMENT OUT")
+                            usage="dance3d render [--world] MOTION CLIP_ID OUT | "
+                                  "dance3d render --smpl WORLD CLIP_ID OUT | dance3d render --group SEGMENT OUT")
     render.add_argument("motion", type=Path, nargs="?", help="a motion Parquet file")
     render.add_argument("clip_id", nargs="?", help="the clip to draw (see the file's clip_id column)")
     render.add_argument("out", type=Path, help="the mp4 to write")
@@ -111,6 +112,9 @@ def _parser() -> argparse.ArgumentParser:
     render.add_argument("--world", action="store_true",
                         help="draw the clip grounded in the world: y up over a floor grid, its path, feet in contact "
                              "(green), one skeleton, feet pinned (as the corpus's world_joints)")
+    render.add_argument("--smpl", action="store_true",
+                        help="MOTION is a world file (data/world): draw its clip with the SMPL skeleton's joints "
+                             "(forward kinematics of smpl_poses, smpl_trans, smpl_scaling) in yellow over it")
     export = sub.add_parser("export", help="export motion for animation tools (bvh) and trainers (aistpp)")
     export_sub = export.add_subparsers(dest="format", required=True, metavar="FORMAT")
     bvh = export_sub.add_parser(
@@ -125,6 +129,9 @@ def _parser() -> argparse.ArgumentParser:
     bvh.add_argument("motion", type=Path, help="a motion Parquet file")
     bvh.add_argument("clip_id", nargs="?", help="the clip to export (see the file's clip_id column)")
     bvh.add_argument("out", type=Path, help="the .bvh file to write (with --all: a folder)")
+    bvh.add_argument("--smpl", action="store_true",
+                     help="MOTION is a world file (data/world): write the clip on the SMPL skeleton (its 24 joints by "
+                          "SMPL's names, rest offsets times smpl_scaling, T-pose rest, the world file's frame)")
     bvh.add_argument("--all", action="store_true",
                      help="every clip of the file, one BVH per dancer (<clip_id>.bvh in the folder OUT), all in the "
                           "segment's one scene: import them together and the dancers stand where they danced")
@@ -139,6 +146,30 @@ def _parser() -> argparse.ArgumentParser:
         epilog="sequence names follow AIST++'s g.._s.._cAll_d.._m.._ch.. (a hash of the clip id: stable)")
     aistpp.add_argument("out", type=Path, help="the folder to write")
     aistpp.add_argument("--fps", type=float, default=60.0, help="frame rate of the motions (AIST++: 60)")
+    edge = export_sub.add_parser(
+        "edge", help="the corpus as EDGE's data preparation leaves it: 5 s slices, music features, 151-d motion",
+        description="Write what EDGE's data/create_dataset.py makes of AIST++, from the corpus (data/world, "
+                    "data/audio, data/audio_features): train/ and test/ (the corpus's split by video), each with "
+                    "motions_sliced/*.pkl (pos, q at 60 fps), wavs_sliced/*.wav and baseline_feats/*.npy (150 x 35 "
+                    "at 30 fps, the beat column from dance3d's beats), all 5 s slices every 0.5 s; and "
+                    "edge_features/*.npy, EDGE's 151-d model input before its normaliser (contacts from dance3d's "
+                    "planted feet, root, 6D rotations, z up). EDGE: train.py --data_path OUT --feature_type baseline.",
+        epilog="EDGE computes its own contacts when it loads motions_sliced; edge_features carries dance3d's")
+    edge.add_argument("out", type=Path, help="the folder to write")
+    edge.add_argument("--length", type=float, default=5.0, help="slice length in seconds (EDGE: 5)")
+    edge.add_argument("--stride", type=float, default=0.5, help="seconds between slices (EDGE: 0.5)")
+    gdance = export_sub.add_parser(
+        "gdance", help="the groups on the SMPL skeleton in AIOZ-GDANCE's layout (group choreography trainers)",
+        description="Write the corpus's groups (data/world, data/audio) as AIOZ-GDANCE lays out its group dances: "
+                    "one sequence per run of a segment where the same two or more dancers are all in view, named "
+                    "<segment>_<start>_<end> (frames at 30 fps): motions_smpl/<name>.pkl (smpl_poses D x T x 72, "
+                    "root_trans D x T x 3 in the segment's one scene, smpl_trans, smpl_scaling, contacts, meta), "
+                    "musics/<name>.wav, baseline_feats/<name>.npy (T x 35) and split_sequence_names.txt "
+                    "(train; train_/test_split_sequence_names.txt: the corpus's split by video).",
+        epilog="root_trans: each pelvis's height is over its dancer's smpl_scaling, so the unit SMPL body stands on "
+               "the floor; smpl_trans keeps it as it is")
+    gdance.add_argument("out", type=Path, help="the folder to write")
+    gdance.add_argument("--min-seconds", type=float, default=2.0, help="shortest group sequence to write (default 2)")
     sample = sub.add_parser("sample", help="generate dance for a music file with the trained model",
                             description="Continue a seed pose (the first frames of a corpus window) for N frames "
                                         "to the music of an audio file, with models/tsmt.pt, and write a motion "
@@ -428,8 +459,12 @@ def main(argv: list[str] | None = None) -> int:
         return _render(root, args)
     if args.command == "export" and args.format == "aistpp":
         return _export_aistpp(root, args)
+    if args.command == "export" and args.format == "edge":
+        return _export_edge(root, args)
+    if args.command == "export" and args.format == "gdance":
+        return _export_gdance(root, args)
     if args.command == "export":
-        return _export_bvh(args)
+        return _export_smpl_bvh(args) if args.smpl else _export_bvh(args)
     if args.command == "eval":
         return _eval(root, args)
     if args.command == "models" and args.action == "fetch":
@@ -578,6 +613,8 @@ def _render(root: Path, args: argparse.Namespace) -> int:
     if args.motion is None or args.clip_id is None:
         print("dance3d render: give MOTION CLIP_ID OUT, or --group SEGMENT OUT", file=sys.stderr)
         return 2
+    if args.smpl:
+        return _render_smpl(root, args)
     clip = _clip_of(args.motion, args.clip_id)
     if clip is None:
         return 2
@@ -595,6 +632,45 @@ def _render(root: Path, args: argparse.Namespace) -> int:
         joints = clip.joints if clip.feet is None else np.concatenate([clip.joints, clip.feet], 1)
         render_clip(joints, clip.time, fps, args.out, audio=audio, title=args.clip_id)
     print(f"wrote {args.out}")
+    return 0
+
+
+def _world_clip_of(path: Path, clip_id: str | None):
+    """One retargeted clip of a world file, or None after saying why."""
+    from pipeline.motion.world.worldfile import read_world
+
+    try:
+        clips = {c.clip_id: c for c in read_world(path)}
+    except Dance3dError as exc:
+        print(f"dance3d: {exc}", file=sys.stderr)
+        return None
+    clip = clips.get(clip_id)
+    if clip is None:
+        print(f"dance3d: {path}: no clip {clip_id!r}; clips: {', '.join(clips) or 'none'}", file=sys.stderr)
+    elif clip.smpl_poses is None:
+        print(f"dance3d: {path}: clip {clip_id} has no SMPL motion", file=sys.stderr)
+        return None
+    return clip
+
+
+def _render_smpl(root: Path, args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from pipeline.core.paths import AUDIO
+    from pipeline.core.storage import read_meta
+    from pipeline.motion.render3d import render_clip
+    from pipeline.motion.smpl.bvh import smpl_skeleton_motion
+
+    clip = _world_clip_of(args.motion, args.clip_id)
+    if clip is None:
+        return 2
+    meta = read_meta(args.motion)
+    smpl = smpl_skeleton_motion(clip.smpl_poses, clip.smpl_trans, float(clip.facts["smpl_scaling"]))
+    world = clip.joints if clip.feet is None else np.concatenate([clip.joints, clip.feet], 1)
+    render_clip(world, clip.time, float(meta.get("fps", 24.0)), args.out,
+                audio=root / AUDIO / f"{meta.get('segment_id', '')}.flac", title=f"{args.clip_id} + SMPL",
+                contact=clip.contact, smpl=smpl.joints)
+    print(f"wrote {args.out}: the world skeleton with the SMPL skeleton in yellow")
     return 0
 
 
@@ -649,6 +725,24 @@ def _export_bvh(args: argparse.Namespace) -> int:
     return 0
 
 
+def _export_smpl_bvh(args: argparse.Namespace) -> int:
+    from pipeline.core.storage import read_meta
+    from pipeline.motion.bvh_export import write_bvh
+    from pipeline.motion.smpl.bvh import smpl_skeleton_motion
+
+    if args.all or args.clip_id is None:
+        print("dance3d export bvh --smpl: give WORLD CLIP_ID OUT.bvh", file=sys.stderr)
+        return 2
+    clip = _world_clip_of(args.motion, args.clip_id)
+    if clip is None:
+        return 2
+    scale = float(clip.facts["smpl_scaling"])
+    fps = float(read_meta(args.motion).get("fps", 24.0))
+    write_bvh(args.out, smpl_skeleton_motion(clip.smpl_poses, clip.smpl_trans, scale), fps)
+    print(f"wrote {args.out}: {len(clip.smpl_poses)} frames at {fps:g} fps on the SMPL skeleton (scale {scale:.3f})")
+    return 0
+
+
 def _export_aistpp(root: Path, args: argparse.Namespace) -> int:
     from pipeline.core.params import load_params, stage_params
     from pipeline.export.aistpp import export
@@ -665,6 +759,46 @@ def _export_aistpp(root: Path, args: argparse.Namespace) -> int:
     frames = sum(len(s.poses) for s in sequences)
     print(f"wrote {args.out}: {len(sequences)} sequences ({sum(s.split == 'train' for s in sequences)} train), "
           f"{frames} frames at {args.fps:g} fps ({frames / args.fps / 60:.1f} minutes); names.csv maps them to clips")
+    return 0
+
+
+def _export_edge(root: Path, args: argparse.Namespace) -> int:
+    from pipeline.core.params import load_params, stage_params
+    from pipeline.export.edge import export
+
+    val_fraction = float(stage_params(load_params(root / "params.yaml"), "shard").get("val_fraction", 0.2))
+    try:
+        slices = export(root, args.out, val_fraction, args.length, args.stride)
+    except Dance3dError as exc:
+        print(f"dance3d: {exc}", file=sys.stderr)
+        return 2
+    if not slices:
+        print(f"dance3d export edge: no clip has SMPL motion and audio {args.length:g} s long: "
+              "run `dvc repro ground audio`", file=sys.stderr)
+        return 2
+    train = sum(s.split == "train" for s in slices)
+    print(f"wrote {args.out}: {len(slices)} slices of {args.length:g} s from {len({s.sequence for s in slices})} "
+          f"sequences ({train} train, {len(slices) - train} test)")
+    return 0
+
+
+def _export_gdance(root: Path, args: argparse.Namespace) -> int:
+    from pipeline.core.params import load_params, stage_params
+    from pipeline.export.gdance import export
+
+    val_fraction = float(stage_params(load_params(root / "params.yaml"), "shard").get("val_fraction", 0.2))
+    try:
+        groups = export(root, args.out, val_fraction, args.min_seconds)
+    except Dance3dError as exc:
+        print(f"dance3d: {exc}", file=sys.stderr)
+        return 2
+    if not groups:
+        print(f"dance3d export gdance: no segment has two dancers in view together for {args.min_seconds:g} s "
+              "with SMPL motion and audio", file=sys.stderr)
+        return 2
+    seconds = sum(g.poses.shape[1] / g.fps for g in groups)
+    print(f"wrote {args.out}: {len(groups)} group sequences, {seconds:.1f} s, "
+          f"{sum(g.poses.shape[0] for g in groups)} dancer tracks ({sum(g.split == 'train' for g in groups)} train)")
     return 0
 
 

@@ -110,6 +110,8 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     smpl = datasets.load_dataset(str(root / "data/corpus"), "smpl", cache_dir=str(tmp_path / "hf"))["train"]
     assert np.array(smpl[0]["smpl_poses"]).shape == (8 * 24, 72) and 0.7 < smpl[0]["smpl_scaling"] < 1.3
     _exports_aistpp(root, tmp_path / "aistpp")
+    _exports_edge(root, tmp_path / "edge")
+    _draws_and_exports_the_smpl_skeleton(root, tmp_path)
     beats = pq.read_table(shards[0], columns=["beat", "beat_frames", "motion_beat_frames"]).to_pylist()[0]
     assert beats["beat_frames"] == [i for i, flag in enumerate(beats["beat"]) if flag]  # flags and frames agree
     assert beats["motion_beat_frames"]
@@ -142,6 +144,39 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
                             capture_output=True, text=True, check=True).stdout
     assert "download: 4 sources, 4 ok" in status
     assert "trim: 4 segments from 3 videos" in status
+
+
+def _draws_and_exports_the_smpl_skeleton(root: Path, tmp_path: Path) -> None:
+    """`render --smpl` and `export bvh --smpl` of one world clip: an mp4, and a BVH of SMPL's 24 joints."""
+    from pipeline.motion.mocap.bvh import read_bvh
+    from pipeline.motion.world.worldfile import read_world
+
+    world = sorted((root / "data/world").glob("[!_]*.parquet"))[0]
+    clip = read_world(world)[0]
+    for command, out in (("render", tmp_path / "smpl.mp4"), ("export bvh", tmp_path / "smpl.bvh")):
+        done = subprocess.run([sys.executable, "-m", "pipeline.cli", *command.split(), "--smpl", str(world),
+                               clip.clip_id, str(out)], cwd=root, capture_output=True, text=True)
+        assert done.returncode == 0 and out.stat().st_size > 0, done.stderr[-2000:]
+    bvh = read_bvh(tmp_path / "smpl.bvh")
+    assert len(bvh.joints) == 24 and bvh.motion.shape[0] == len(clip.frame)
+
+
+def _exports_edge(root: Path, out: Path) -> None:
+    """`dance3d export edge`: per split the four folders EDGE's loader pairs by sorted name, their shapes."""
+    import pickle
+
+    done = subprocess.run([sys.executable, "-m", "pipeline.cli", "export", "edge", str(out), "--length", "2",
+                           "--stride", "1"], cwd=root, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    kinds = {"motions_sliced": ".pkl", "wavs_sliced": ".wav", "baseline_feats": ".npy", "edge_features": ".npy"}
+    stems = {kind: sorted(p.name[: -len(ext)] for p in out.glob(f"*/{kind}/*{ext}")) for kind, ext in kinds.items()}
+    assert stems["motions_sliced"] and all(names == stems["motions_sliced"] for names in stems.values())
+    first = next(out.glob("*/motions_sliced/*.pkl"))
+    motion = pickle.loads(first.read_bytes())
+    assert motion["pos"].shape == (120, 3) and motion["q"].shape == (120, 72)
+    features = first.parent.parent / "edge_features" / first.name.replace(".pkl", ".npy")
+    assert np.load(features).shape == (60, 151) and set(np.unique(np.load(features)[:, :4])) <= {0.0, 1.0}
+    assert np.load(first.parent.parent / "baseline_feats" / features.name).shape == (60, 35)
 
 
 def _exports_aistpp(root: Path, out: Path) -> None:

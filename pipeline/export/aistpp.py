@@ -52,6 +52,7 @@ class Sequence:
     trans: np.ndarray     # T x 3
     scaling: float
     fps: float
+    planted: np.ndarray   # T x 4 bool: left ankle, right ankle, left ball, right ball (EDGE's contact joints)
 
 
 def sequence_name(clip_id: str, genre: str = "DN") -> tuple[str, str]:
@@ -75,9 +76,16 @@ def resample(poses: np.ndarray, trans: np.ndarray, fps: float, to_fps: float) ->
     return out.reshape(len(dst), -1), path
 
 
+def resample_flags(flags: np.ndarray, fps: float, to_fps: float, frames: int) -> np.ndarray:
+    """``frames`` rows of per-frame flags (T x k) at ``to_fps``: each from the nearest source frame."""
+    src = np.minimum(np.rint(np.arange(frames) * fps / to_fps).astype(int), len(flags) - 1)
+    return np.asarray(flags)[src]
+
+
 def corpus_sequences(root: Path, val_fraction: float, fps: float = AIST_FPS, genre: str = "DN") -> list[Sequence]:
     """Every clip of the world files that has its SMPL motion and its segment's audio."""
     from pipeline.core.storage import read_meta
+    from pipeline.motion.smpl.checks import foot_planted
     from pipeline.motion.world.worldfile import read_world
 
     segments = read_index(root / SEGMENTS)
@@ -92,10 +100,11 @@ def corpus_sequences(root: Path, val_fraction: float, fps: float = AIST_FPS, gen
                 continue
             poses, trans = resample(clip.smpl_poses, clip.smpl_trans, rate, fps)
             name, music = sequence_name(clip.clip_id, genre)
+            planted = resample_flags(foot_planted(clip.contact, clip.planted), rate, fps, len(poses))
             out.append(Sequence(name, music, clip.clip_id, world_file.stem, seg["video_id"],
                                 split_of(seg["video_id"], val_fraction), float(clip.time[0]),
                                 poses.astype(np.float32), trans.astype(np.float32),
-                                float(clip.facts["smpl_scaling"]), fps))
+                                float(clip.facts["smpl_scaling"]), fps, planted))
     return out
 
 

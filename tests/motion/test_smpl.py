@@ -141,3 +141,23 @@ def test_sliding_counts_only_planted_frames():
     points[:, 0, 0] = [0.0, 0.001, 0.002, 0.5]  # 1 mm a frame while planted, then a step
     planted = np.array([[True], [True], [True], [False]])
     assert checks.sliding(points, planted, 30.0) == pytest.approx(1.0)
+
+
+def test_the_smpl_bvh_reads_back_as_the_same_joints(tmp_path):
+    """A BVH reader's forward kinematics of ``export bvh --smpl`` gives SMPL's forward kinematics."""
+    from scipy.spatial.transform import Rotation
+
+    from pipeline.motion.bvh_export import write_bvh
+    from pipeline.motion.mocap.bvh import forward_kinematics, read_bvh
+    from pipeline.motion.smpl.bvh import smpl_skeleton_motion
+    from pipeline.motion.smpl.skeleton import JOINTS
+
+    frames = 6
+    poses = (Rotation.random(frames * 24, random_state=3).as_rotvec() * 0.4).reshape(frames, 72)
+    trans = np.stack([np.linspace(0, 0.5, frames), np.full(frames, 0.9), np.zeros(frames)], 1)
+    motion = smpl_skeleton_motion(poses, trans, 0.93)
+    write_bvh(tmp_path / "smpl.bvh", motion, 24.0)
+    bvh = read_bvh(tmp_path / "smpl.bvh")
+    positions, _, _ = forward_kinematics(bvh, "replace")
+    back = positions[:, [bvh.index(name) for name in JOINTS]]
+    assert np.abs(back - motion.joints).max() < 1e-5  # the file's six decimals
