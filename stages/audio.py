@@ -10,7 +10,9 @@ import sys
 from pathlib import Path
 
 import pipeline.music.audio
+import pipeline.music.beats
 import pipeline.music.featurefile
+from pipeline.core.errors import InputError
 from pipeline.core.itemstage import WorkItem, run_item_stage
 from pipeline.core.params import corpus_fps, load_params, stage_params
 from pipeline.core.paths import AUDIO, AUDIO_FEATURES, METRICS, RAW, SEGMENTS
@@ -19,10 +21,11 @@ from pipeline.core.storage import code_fingerprint, fingerprint, item_files, rea
 from pipeline.ingest.catalog import read_index
 from pipeline.ingest.segmentvideo import SegmentVideo
 from pipeline.music.audio import AudioJob, LoudnessOptions, audio_segment
+from pipeline.music.beats import DEFAULT_TRACKER, TRACKERS
 from pipeline.music.featurefile import SCHEMA_VERSION
 
 log = logging.getLogger("dance3d.audio")
-CODE = code_fingerprint(pipeline.music.audio, pipeline.music.featurefile)
+CODE = code_fingerprint(pipeline.music.audio, pipeline.music.beats, pipeline.music.featurefile)
 
 
 def run(root: Path) -> None:
@@ -32,6 +35,9 @@ def run(root: Path) -> None:
                            true_peak=float(params.get("true_peak", -2.0)),
                            loudness_range=float(params.get("loudness_range", 7.0)))
     extra_sets = list(params.get("extra_features") or [])
+    tracker = str(params.get("beats", DEFAULT_TRACKER))
+    if tracker not in TRACKERS:
+        raise InputError(root / "params.yaml", f"audio.beats: {tracker!r} is not a tracker: {', '.join(TRACKERS)}")
     items, silent = [], []
     for seg_id, seg in read_index(root / SEGMENTS).items():
         if not seg["has_audio"]:
@@ -41,7 +47,7 @@ def run(root: Path) -> None:
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out_audio, out_features = root / AUDIO / f"{seg_id}.flac", root / AUDIO_FEATURES / f"{seg_id}.parquet"
         job = AudioJob(SegmentVideo.from_index(root / RAW, seg), out_audio, out_features, opts, tuple(extra_sets),
-                       params["fps"], params, inputs, fp)
+                       params["fps"], params, inputs, fp, tracker)
         items.append(WorkItem(seg_id, fp, (out_features, out_audio), job))
     if silent:
         log.info("%d segments have no audio track and are left out downstream: %s", len(silent), ", ".join(silent))

@@ -21,7 +21,7 @@ from pipeline.core.errors import MediaError
 from pipeline.core.storage import atomic_path
 from pipeline.ingest.media import ffmpeg_exe
 from pipeline.ingest.segmentvideo import SegmentVideo
-from pipeline.music.beats import BEAT_HOP, BEAT_SR, DOWNBEAT_METHOD, Beats, beat_flags, track_beats
+from pipeline.music.beats import DEFAULT_TRACKER, Beats, beat_flags, track_beats
 
 FPS = 24
 HOP = 512
@@ -123,22 +123,35 @@ def feature_rate(fps: float) -> int:
     return int(round(rate))
 
 
+def read_mono(path: Path) -> tuple[np.ndarray, int]:
+    """A sound file decoded once at its own rate, channels averaged (as ``librosa.load`` does)."""
+    import soundfile
+
+    y, sr = soundfile.read(str(path), dtype="float32", always_2d=True)
+    return y.mean(axis=1), int(sr)
+
+
 def load_for_features(path: Path, fps: float = FPS) -> np.ndarray:
     y, _ = librosa.load(str(path), sr=feature_rate(fps), mono=True)
     return y
 
 
-def load_for_beats(path: Path) -> np.ndarray:
-    y, _ = librosa.load(str(path), sr=BEAT_SR, mono=True)
-    return y
+def features_of_file(path: Path, fps: float = FPS, extra_sets: tuple[str, ...] = ()) -> AudioFeatures:
+    """Features of any file ffmpeg reads, with the default tracker's beats: what the audio stage
+    computes, for music outside the corpus (``dance3d sample``)."""
+    from pipeline.music.beats import RNN_SR
+
+    y, _ = librosa.load(str(path), sr=RNN_SR, mono=True)
+    low = librosa.resample(y, orig_sr=RNN_SR, target_sr=feature_rate(fps), res_type="soxr_hq")
+    return compute_features(low, extra_sets, fps, track_beats(y, RNN_SR))
 
 
 def compute_features(y: np.ndarray, extra_sets: tuple[str, ...] = (), fps: float = FPS,
                      beats: Beats | None = None) -> AudioFeatures:
     """Features of mono audio at ``feature_rate(fps)``; frame k is centred at k / fps s.
 
-    ``beats``: from ``track_beats`` on full-resolution audio (``load_for_beats``); when absent
-    they are tracked on ``y`` itself, upsampled (fine for tests, less exact for real music).
+    ``beats``: from ``track_beats`` on full-resolution audio (``read_mono``); when absent
+    librosa's tracker runs on ``y`` itself, upsampled (fine for tests, less exact for real music).
     """
     sr = feature_rate(fps)
     if len(y) < HOP:
@@ -154,7 +167,7 @@ def compute_features(y: np.ndarray, extra_sets: tuple[str, ...] = (), fps: float
     onset = librosa.onset.onset_strength(y=y, sr=sr, hop_length=HOP)
     chroma = librosa.feature.chroma_stft(y=y, sr=sr, n_fft=n_fft, hop_length=HOP)
     frames = mfcc.shape[1]
-    beats = beats if beats is not None else track_beats(y, sr)
+    beats = beats if beats is not None else track_beats(y, sr, "librosa")
     beat = beat_flags(beats.times, frames, fps)
     extra = {}
     if "mel80" in extra_sets:  # Transflower-style: 80-band log-mel at the motion rate
@@ -196,6 +209,7 @@ class AudioJob:
     params: dict
     inputs: dict
     fingerprint: str
+    tracker: str = DEFAULT_TRACKER
 
 
 def audio_segment(job: AudioJob) -> dict:
@@ -203,13 +217,15 @@ def audio_segment(job: AudioJob) -> dict:
 
     seg = job.segment
     loudness = normalise_loudness(seg.source, job.out_audio, job.loudness, seg.audio_stream, seg.audio_seek())
-    beats = track_beats(load_for_beats(job.out_audio), BEAT_SR)
-    f = compute_features(load_for_features(job.out_audio, job.fps), tuple(job.extra_sets), job.fps, beats)
+    y, sr = read_mono(job.out_audio)  # decoded once: the tracker and the features resample it as they need
+    beats = track_beats(y, sr, job.tracker)
+    low = librosa.resample(y, orig_sr=sr, target_sr=feature_rate(job.fps), res_type="soxr_hq")
+    f = compute_features(low, tuple(job.extra_sets), job.fps, beats)
     meta = {"segment_id": job.out_features.stem, "fps": job.fps, "tempo": f.tempo, "loudness": loudness.as_dict(),
             "beat_times": [round(t, 6) for t in f.beat_times],
             "downbeat_times": [round(t, 6) for t in f.downbeat_times], "beats_per_bar": f.beats_per_bar,
-            "beat_tracker": f"librosa {librosa.__version__} at {BEAT_SR} Hz, hop {BEAT_HOP}, time-varying tempo",
-            "downbeat_method": DOWNBEAT_METHOD,
+            "beat_tracker": beats.tracker, "beat_tracker_detail": beats.description,
+            "downbeat_method": beats.downbeat_method,
             "alignment": f"frame k is centred at k/{job.fps:g} s: audio resampled to {feature_rate(job.fps)} Hz, "
                          f"hop {HOP}, centred frames; beat flags at the frame nearest to each exact beat time"}
     table = features_table(f.frames, job.fps, f.mfcc, f.chroma, f.onset, f.beat, f.extra)

@@ -4,8 +4,8 @@ Protocol (mir_eval's defaults, as in the MIREX beat task): beats before 5 s are 
 in both lists; F-measure with a +-70 ms window, CMLt and AMLt (continuity, any metrical
 level allowed for AMLt: double, half, off-beat), Cemgil and Goto; tempo error of the
 median inter-beat interval. Downbeat F-measure where the annotation gives bar positions.
-Every figure is reported for the pipeline's tracker and for the previous default (the
-tracker run on the motion-rate onset envelope) side by side.
+Every figure is reported per file for both trackers (``rnn``, ``librosa``) and for the first
+dance3d tracker (librosa on the motion-rate onset envelope) side by side, and as their means.
 """
 
 from __future__ import annotations
@@ -18,9 +18,12 @@ import mir_eval
 import numpy as np
 
 from pipeline.core.errors import InputError
-from pipeline.music.beats import BEAT_SR, track_beats, track_beats_motion_rate
+from pipeline.music.beats import RNN_SR, TRACKERS, describe, track_beats, track_beats_motion_rate
 
 _SPLIT = re.compile(r"[\s,;]+")
+PROTOCOL = ("mir_eval.beat.evaluate (MIREX): beats before 5 s ignored in both lists, F-measure window +-70 ms, "
+            "CMLt/AMLt continuity, tempo error of the median inter-beat interval; downbeat F-measure where the "
+            "annotation gives bar positions")
 
 
 def read_beat_annotations(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
@@ -69,33 +72,60 @@ def score(reference: np.ndarray, estimated: np.ndarray, ref_downbeats: np.ndarra
 
 
 def evaluate_beats(audio: Path, annotations: Path, fps: float = 24.0) -> dict:
-    """Scores of the pipeline's beats and of the previous default on one annotated audio file."""
-    from pipeline.music.audio import HOP, load_for_features
+    """Scores of both trackers and of the first dance3d tracker on one annotated audio file."""
+    from pipeline.music.audio import HOP, feature_rate
 
     reference, bars = read_beat_annotations(annotations)
     try:
-        y = librosa.load(str(audio), sr=BEAT_SR, mono=True)[0]
+        y = librosa.load(str(audio), sr=RNN_SR, mono=True)[0]
     except Exception as exc:  # audioread / soundfile raise several types
         raise InputError(audio, f"cannot read the audio: {exc}") from None
-    beats = track_beats(y, BEAT_SR)
     ref_down = reference[bars == 1] if bars is not None else None
-    y_motion = load_for_features(audio, fps)
+    out = {"audio": str(audio), "annotations": str(annotations), "annotated_beats": int(len(reference))}
+    for tracker in TRACKERS:
+        beats = track_beats(y, RNN_SR, tracker)
+        out[tracker] = score(reference, beats.times, ref_down, beats.downbeats if ref_down is not None else None)
+        out[tracker]["beats_per_bar"] = beats.beats_per_bar
+    y_motion = librosa.resample(y, orig_sr=RNN_SR, target_sr=feature_rate(fps), res_type="soxr_hq")
     onset = librosa.onset.onset_strength(y=y_motion, sr=fps * HOP, hop_length=HOP)
-    previous = track_beats_motion_rate(onset, fps, HOP)
-    return {
-        "audio": str(audio), "annotations": str(annotations), "annotated_beats": int(len(reference)),
-        "protocol": "mir_eval.beat.evaluate: beats before 5 s ignored, F-measure window +-70 ms",
-        "dance3d": score(reference, beats.times, ref_down, beats.downbeats if ref_down is not None else None),
-        f"previous_{fps:g}fps_envelope": score(reference, previous),
-    }
+    out[f"previous_{fps:g}fps_envelope"] = score(reference, track_beats_motion_rate(onset, fps, HOP))
+    return out
+
+
+def evaluate_files(pairs: list[tuple[Path, Path]], fps: float = 24.0) -> dict:
+    """Every (audio, annotations) pair scored, and each method's mean over the files."""
+    files = [evaluate_beats(audio, beats, fps) for audio, beats in pairs]
+    methods = [k for k in files[0] if isinstance(files[0][k], dict)] if files else []
+    mean = {}
+    for method in methods:  # scores only: a mean tempo or bar length says nothing
+        keys = dict.fromkeys(k for f in files for k in f[method] if k not in ("beats_per_bar",) and "bpm" not in k)
+        mean[method] = {k: round(float(np.nanmean([f[method].get(k, np.nan) for f in files])), 4) for k in keys}
+    return {"protocol": PROTOCOL, "trackers": {t: describe(t) for t in TRACKERS}, "files": files, "mean": mean}
+
+
+def pairs_in(folder: Path) -> list[tuple[Path, Path]]:
+    """Audio files of a folder with the annotation of the same name (``.beats`` or ``.txt``)."""
+    out = []
+    for audio in sorted(folder.iterdir()):
+        if audio.suffix.lower() in (".beats", ".txt") or audio.is_dir():
+            continue
+        for ext in (".beats", ".txt"):
+            if audio.with_suffix(ext).exists():
+                out.append((audio, audio.with_suffix(ext)))
+                break
+    return out
 
 
 def format_table(result: dict) -> str:
-    methods = [k for k in result if k == "dance3d" or k.startswith("previous")]
-    keys = list(result["dance3d"])
-    width = max(len(k) for k in keys)
-    lines = [f"{result['audio']} against {result['annotations']} ({result['annotated_beats']} beats; "
-             f"{result['protocol']})", f"{'':{width}}  " + "  ".join(f"{m:>22}" for m in methods)]
-    for key in keys:
-        lines.append(f"{key:{width}}  " + "  ".join(f"{result[m].get(key, ''):>22}" for m in methods))
+    methods = list(result["mean"])
+    lines = [f"protocol: {result['protocol']}"]
+    for entry in [*result["files"], {"audio": f"mean of {len(result['files'])} files", **result["mean"]}]:
+        keys = [k for k in entry[methods[0]]] if methods else []
+        keys += [k for m in methods for k in entry[m] if k not in keys]
+        width = max(len(k) for k in keys)
+        head = entry["audio"] if "annotations" not in entry else \
+            f"{entry['audio']} against {entry['annotations']} ({entry['annotated_beats']} beats)"
+        lines += ["", head, f"{'':{width}}  " + "  ".join(f"{m:>22}" for m in methods)]
+        for key in keys:
+            lines.append(f"{key:{width}}  " + "  ".join(f"{entry[m].get(key, ''):>22}" for m in methods))
     return "\n".join(lines)
