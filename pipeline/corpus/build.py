@@ -29,8 +29,17 @@ from pipeline.motion.mocap.skeleton import H36M17, H36M_BONES
 from pipeline.motion.motionfile import clip_frame_counts, read_motion
 from pipeline.motion.world.grounding import ROTATION_JOINTS
 from pipeline.motion.world.worldfile import read_world
-from pipeline.music.alignment import beat_align_score, beat_f1, half_beat_later, kinematic_beats, shuffled_pairs
+from pipeline.music.alignment import (
+    beat_align_score,
+    beat_align_score_aistpp,
+    beat_f1,
+    half_beat_later,
+    kinematic_beats,
+    shuffled_pairs,
+)
+from pipeline.music.beats import beat_flags, describe
 from pipeline.music.featurefile import FeatureFile, read_features
+from pipeline.music.levels import FACTORS, candidate_levels, choose_level, phase
 from pipeline.pose.trackfile import read_tracks
 
 
@@ -40,16 +49,36 @@ def _in_window(times: np.ndarray, k: int, window: int, fps: float) -> list[int]:
     return [int(f) for f in frames if 0 <= f < window]
 
 
-def window_beats(feats: FeatureFile, motion: np.ndarray, k: int, window: int, fps: float) -> dict:
-    """The beat columns of one window: music beats, downbeats, motion beats and their alignment."""
+def segment_levels(feats: FeatureFile) -> dict[str, np.ndarray]:
+    """The beat levels a segment's music allows (``levels.candidate_levels``), segment clock."""
+    return candidate_levels(feats.beat_times, np.asarray(feats.meta.get("downbeat_times", [])),
+                            int(feats.meta.get("beats_per_bar", 4)))
+
+
+def window_beats(feats: FeatureFile, levels: dict[str, np.ndarray], motion: np.ndarray, k: int, window: int,
+                 fps: float) -> tuple[dict, dict]:
+    """The beat columns of one window at the level its dance follows: the scalar and list columns,
+    and the per-frame ones (beat and downbeat flags, beat and bar phase)."""
     start, end = k / fps, (k + window) / fps
-    music = np.asarray([t - start for t in feats.beat_times if start <= t < end])
     motion_beats = kinematic_beats(motion, fps)
-    return {"beat_frames": _in_window(feats.beat_times, k, window, fps),
-            "downbeat_frames": _in_window(np.asarray(feats.meta.get("downbeat_times", [])), k, window, fps),
-            "motion_beat_frames": [int(f) for f in motion_beats],
-            "beat_align_score": beat_align_score(music, motion_beats / fps),
-            "beat_f1": beat_f1(music, motion_beats / fps, fps)}
+    level = choose_level(levels, start + motion_beats / fps, start, end, fps)
+    beats, downbeats = levels[level.name], np.asarray(feats.meta.get("downbeat_times", []), float)
+    music = beats[(beats >= start) & (beats < end)] - start
+    grid = (k + np.arange(window)) / fps
+    columns = {"beat_frames": _in_window(beats, k, window, fps),
+               "downbeat_frames": _in_window(downbeats, k, window, fps),
+               "beat_times": [float(t) for t in music],
+               "downbeat_times": [float(t - start) for t in downbeats if start <= t < end],
+               "beat_level": level.name, "beat_level_reason": level.reason,
+               "beat_tracker": str(feats.meta.get("beat_tracker", "librosa")),
+               "tempo": feats.tempo * FACTORS[level.name],
+               "motion_beat_frames": [int(f) for f in motion_beats],
+               "beat_align_score": beat_align_score(music, motion_beats / fps),
+               "beat_align_score_aistpp": beat_align_score_aistpp(music, motion_beats / fps),
+               "beat_f1": beat_f1(music, motion_beats / fps, fps)}
+    frames = {"beat": beat_flags(beats - start, window, fps), "downbeat": beat_flags(downbeats - start, window, fps),
+              "beat_phase": phase(beats, grid), "bar_phase": phase(downbeats, grid)}
+    return columns, frames
 
 
 def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
@@ -74,6 +103,7 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
             continue
         grounded_clips = {c.clip_id: c for c in read_world(world_file)}
         feats = read_features(feature_file)
+        levels = segment_levels(feats)
         for name, rate in (("motion", motion.fps), ("audio features", float(feats.meta.get("fps", FPS)))):
             if abs(rate - fps) > 1e-9:
                 raise ValueError(f"{seg_id}: {name} at {rate:g} fps, the corpus at {fps:g}: re-run resample and audio")
@@ -97,11 +127,12 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
                         "tags": list(video.get("tags") or []),
                         "licence": video.get("licence", ""), "segment_id": seg_id, "clip_id": clip.clip_id,
                         "track_id": clip.track_id, "start_frame": k, "start_time": k / fps,
-                        "segment_start": seg["start"], "tempo": feats.tempo,
+                        "segment_start": seg["start"],
                         "bone_lengths": np.asarray(grounded.facts["bone_lengths"]),
                         "camera_pitch": grounded.facts["pitch_deg"], "camera_roll": grounded.facts["roll_deg"],
-                        "smpl_scaling": grounded.facts.get("smpl_scaling", float("nan")),
-                        **window_beats(feats, joints, k, window, fps)}
+                        "smpl_scaling": grounded.facts.get("smpl_scaling", float("nan"))}
+                beat_columns, beat_frames = window_beats(feats, levels, joints, k, window, fps)
+                meta.update(beat_columns)
                 world = grounded.joints[i: i + window].copy()
                 start = world[0, 0, [0, 2]].copy()
                 world[..., [0, 2]] -= start  # x/z from the window's first root position
@@ -118,9 +149,10 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
                     smpl_trans[:, [0, 2]] -= start
                 smpl_poses = None if grounded.smpl_poses is None else grounded.smpl_poses[i: i + window]
                 windows.append(Window(meta, joints, feats.mfcc[k: k + window], feats.chroma[k: k + window],
-                                      feats.onset[k: k + window], feats.beat[k: k + window], world,
+                                      feats.onset[k: k + window], beat_frames["beat"], world,
                                       grounded.contact[i: i + window], grounded.rotations_6d[i: i + window],
-                                      feet, world_feet, planted, probability, smpl_poses, smpl_trans))
+                                      feet, world_feet, planted, probability, smpl_poses, smpl_trans,
+                                      beat_frames["downbeat"], beat_frames["beat_phase"], beat_frames["bar_phase"]))
     return windows, counts
 
 
@@ -195,7 +227,7 @@ def alignment_summary(windows: list[Window], fps: float, seed: int = 0) -> dict:
     if not windows:
         return {"windows": 0}
     partners = shuffled_pairs([w.meta["video_id"] for w in windows], seed)
-    scores = {name: {"bas": [], "f1": []} for name in ("matched", "shuffled", "half_beat")}
+    scores = {name: {"bas": [], "bas_aistpp": [], "f1": []} for name in ("matched", "shuffled", "half_beat")}
     for w, j in zip(windows, partners):
         # All from frame indices (not the windows' exact-time scores), so matched and control
         # music beats have the same precision and only the pairing differs.
@@ -204,6 +236,7 @@ def alignment_summary(windows: list[Window], fps: float, seed: int = 0) -> dict:
         for name, music in (("matched", own), ("shuffled", np.asarray(windows[j].meta["beat_frames"], float)),
                             ("half_beat", half_beat_later(own))):
             scores[name]["bas"].append(beat_align_score(music / fps, motion))
+            scores[name]["bas_aistpp"].append(beat_align_score_aistpp(music / fps, motion))
             scores[name]["f1"].append(beat_f1(music / fps, motion, fps))
 
     def mean(values: list[float]) -> float:
@@ -211,8 +244,12 @@ def alignment_summary(windows: list[Window], fps: float, seed: int = 0) -> dict:
         return round(float(np.mean(good)), 4) if good else float("nan")
 
     figures = {f"{name}_{key}": mean(scores[name][short]) for name in scores
-               for key, short in (("beat_align_score", "bas"), ("beat_f1", "f1"))}
-    return {"windows": len(windows), **figures,
+               for key, short in (("beat_align_score", "bas"), ("beat_align_score_aistpp", "bas_aistpp"),
+                                  ("beat_f1", "f1"))}
+    levels = [w.meta.get("beat_level") or "tracked" for w in windows]
+    trackers = sorted({w.meta.get("beat_tracker") or "librosa" for w in windows})
+    return {"windows": len(windows), **figures, "beat_levels": {n: levels.count(n) for n in FACTORS},
+            "beat_trackers": {t: describe(t) for t in trackers},
             "shuffle": "each window's motion beats against the music beats of a window of another video (seeded)",
             "half_beat": "each window's motion beats against its own music beats moved half a beat later"}
 

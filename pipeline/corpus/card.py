@@ -117,14 +117,39 @@ def _alignment_text(a: dict | None) -> str:
             f"controls: the beats of a window of another video (shuffled, seeded), and the window's own beats "
             f"moved half a beat later (half beat):\n\n"
             f"| score | matched | shuffled | half beat |\n|---|---|---|---|\n"
-            f"| beat-align score (AIST++) | {a['matched_beat_align_score']} | {a['shuffled_beat_align_score']} | "
+            f"| beat-align score, Bailando's (each music beat to its nearest motion beat) | "
+            f"{a['matched_beat_align_score']} | {a['shuffled_beat_align_score']} | "
             f"{a.get('half_beat_beat_align_score', 'n/a')} |\n"
+            f"| beat-align score, AIST++'s (each motion beat to its nearest music beat) | "
+            f"{a.get('matched_beat_align_score_aistpp', 'n/a')} | {a.get('shuffled_beat_align_score_aistpp', 'n/a')} | "
+            f"{a.get('half_beat_beat_align_score_aistpp', 'n/a')} |\n"
             f"| beat-consistency F-score (2 frames) | {a['matched_beat_f1']} | {a['shuffled_beat_f1']} | "
             f"{a.get('half_beat_beat_f1', 'n/a')} |\n\n"
             "A corpus whose motion follows its music scores clearly higher matched than under either control; no "
             "gap means the motion and the music are out of sync somewhere in the pipeline, or the dancers do "
             "not dance to the beat. The shuffled control fails on covers (videos dancing to one song share "
-            "its beats, so shuffled scores like matched); the half-beat control holds for any corpus.")
+            "its beats, so shuffled scores like matched); the half-beat control holds for any corpus. "
+            "Both beat-align scores use sigma = 0.05 s; Bailando's is lisiyao21/Bailando "
+            "utils/beat_align_score.py, AIST++'s google-research/mint tools/calculate_beat_scores.py."
+            + _beats_text(a))
+
+
+def _beats_text(a: dict) -> str:
+    """Which tracker labelled the beats, its licence, and the dancers' beat levels."""
+    trackers = a.get("beat_trackers") or {}
+    levels = a.get("beat_levels") or {}
+    if not trackers:
+        return ""
+    lines = ["\n\n**Beats.** " + " ".join(f"`{name}`: {text}." for name, text in trackers.items())]
+    if "rnn" in trackers:
+        lines.append("The beats, downbeats and bars of this corpus come from madmom's models, licensed "
+                     "CC BY-NC-SA 4.0: use of the labels is non-commercial and shares alike; set "
+                     "`audio.beats: librosa` in params.yaml for licence-free labels.")
+    if levels:
+        lines.append("The beat columns of each window are at the level its dance follows "
+                     "(`beat_level`, `beat_level_reason`): " +
+                     ", ".join(f"{n} {c}" for n, c in levels.items()) + " windows.")
+    return " ".join(lines)
 
 
 def style_stats(metas: list[dict]) -> list[dict]:
@@ -278,12 +303,20 @@ PyTorch loader is `pipeline.train.dataset.WindowDataset`. Each file's key-value 
 | mfcc | {round(window * fps)} x 39 float32 | MFCC-13, deltas, delta-deltas |
 | chroma | {round(window * fps)} x 12 float32 | chroma (STFT) |
 | onset | {round(window * fps)} float32 | onset strength |
-| beat | {round(window * fps)} int8 | 1 on the frame nearest to each music beat |
-| tempo | float32 | estimated tempo of the segment (BPM) |
-| beat_frames | list of int32 | music beats as frame indices in the window (tracked at 22050 Hz, exact times in the audio features) |
-| downbeat_frames | list of int32 | estimated bar starts (low-band accent over 3 or 4 beats per bar: a heuristic) |
+| beat | {round(window * fps)} int8 | 1 on the frame nearest to each music beat, at the window's beat level |
+| downbeat | {round(window * fps)} int8 | 1 on the frame nearest to each bar start |
+| beat_phase | {round(window * fps)} float32 | 0 at a beat, rising towards 1 before the next (NaN: fewer than two beats) |
+| bar_phase | {round(window * fps)} float32 | the same over bars |
+| tempo | float32 | tempo at the window's beat level (BPM) |
+| beat_times, downbeat_times | list of float32 | music beats and bar starts, seconds from the window's start |
+| beat_frames | list of int32 | music beats as frame indices in the window (exact times in the audio features) |
+| downbeat_frames | list of int32 | bar starts as frame indices (a subset of beat_frames) |
+| beat_level | string | tracked, half or double: the level of the music's beats the dance follows |
+| beat_level_reason | string | why: each level's F-measure against the motion beats |
+| beat_tracker | string | rnn (madmom's models, CC BY-NC-SA 4.0) or librosa |
 | motion_beat_frames | list of int32 | kinematic beats: local minima of the smoothed mean joint speed (AIST++) |
-| beat_align_score | float32 | AIST++ beat-align score of the window (sigma 0.05 s; NaN without music beats) |
+| beat_align_score | float32 | Bailando's beat-align score: each music beat to its nearest motion beat (sigma 0.05 s) |
+| beat_align_score_aistpp | float32 | AIST++'s: each motion beat to its nearest music beat (sigma 0.05 s) |
 | beat_f1 | float32 | beat-consistency F-score of motion beats against music beats, 2-frame tolerance |
 
 Joint order: {joints}.

@@ -3,8 +3,9 @@ features, cut into overlapping windows, split by video, written as Parquet shard
 
 A window of ``W`` frames starting at frame k holds motion frames k .. k+W-1 of one clip
 and the audio feature frames with the same numbers: both are centred at k/fps s on the
-segment clock (fps = ``common.fps``, 24 by default). Beat columns give frame indices
-inside the window (music beats, estimated downbeats, motion beats) and two alignment
+segment clock (fps = ``common.fps``, 24 by default). Beat columns give, at the dancers' beat level
+(``pipeline.music.levels``), per frame a beat flag, a downbeat flag and the beat and bar phase,
+and per window the beat and downbeat times and frames, the motion beats and the alignment
 scores (``pipeline.music.alignment``). Windows start every ``H`` frames from the clip's first frame; a clip
 shorter than one window gives none. The train/val split is by video (a hash of its id),
 so the overlapping windows of one video never straddle the split.
@@ -18,18 +19,21 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 
-SCHEMA_VERSION = 8  # 2: beat, downbeat and motion-beat frames, alignment scores; any frame rate. 3: tags.
+SCHEMA_VERSION = 9  # 2: beat, downbeat and motion-beat frames, alignment scores; any frame rate. 3: tags.
 #                    4: world-frame joints, root path, foot contact, bone lengths, 6D rotations, camera pitch/roll
 #                    5: feet, world_feet. 6: contact from the learned contact model, planted, contact_probability
 #                    7: group_window_id (the group window, corpus/groups.py, that holds this one's dancer)
 #                    8: smpl_poses, smpl_trans, smpl_scaling (the motion on the SMPL tree, motion/smpl)
+#                    9: downbeat flags, beat and bar phase, beat and downbeat times, the dancers' beat level,
+#                       the tracker, the AIST++ beat-align score beside Bailando's
 FPS = 24  # the default corpus rate
 MFCC_DIMS = 39
 # A window built without beat analysis (tests, benchmarks) has no beats: empty lists, NaN scores.
 WORLD_DEFAULTS = {"camera_pitch": float("nan"), "camera_roll": float("nan"), "group_window_id": "",
                   "smpl_scaling": float("nan")}
 BEAT_DEFAULTS = {"beat_frames": [], "downbeat_frames": [], "motion_beat_frames": [], "beat_align_score": float("nan"),
-                 "beat_f1": float("nan")}
+                 "beat_align_score_aistpp": float("nan"), "beat_f1": float("nan"), "beat_times": [],
+                 "downbeat_times": [], "beat_level": "", "beat_level_reason": "", "beat_tracker": ""}
 CHROMA_DIMS = 12
 BONES = 16
 ROTATION_JOINTS = 23  # pipeline.motion.world.grounding.ROTATION_JOINTS (the BVH skeleton's joints)
@@ -74,12 +78,21 @@ def corpus_schema(window: int) -> pa.Schema:
         ("mfcc", fixed(fixed(pa.float32(), MFCC_DIMS), window)),
         ("chroma", fixed(fixed(pa.float32(), CHROMA_DIMS), window)),
         ("onset", fixed(pa.float32(), window)),
-        ("beat", fixed(pa.int8(), window)),
-        ("tempo", pa.float32()),
+        ("beat", fixed(pa.int8(), window)),            # 1 on the frame nearest each beat (the beat level's)
+        ("downbeat", fixed(pa.int8(), window)),        # 1 on the frame nearest each bar start
+        ("beat_phase", fixed(pa.float32(), window)),   # 0 at a beat, towards 1 before the next (NaN: no beats)
+        ("bar_phase", fixed(pa.float32(), window)),    # the same over bars
+        ("tempo", pa.float32()),                       # BPM at the beat level
+        ("beat_times", pa.list_(pa.float32())),        # music beats, seconds from the window's start
+        ("downbeat_times", pa.list_(pa.float32())),    # bar starts, likewise (a subset of beat_times)
         ("beat_frames", pa.list_(pa.int32())),         # music beats: frame indices inside the window
-        ("downbeat_frames", pa.list_(pa.int32())),     # estimated bar starts (a subset of beat_frames)
+        ("downbeat_frames", pa.list_(pa.int32())),     # bar starts (a subset of beat_frames)
+        ("beat_level", pa.string()),                   # tracked, half or double: the level the dance follows
+        ("beat_level_reason", pa.string()),            # why (each level's fit to the motion beats)
+        ("beat_tracker", pa.string()),                 # rnn or librosa (the card says more, and the licence)
         ("motion_beat_frames", pa.list_(pa.int32())),  # kinematic beats of the window's motion
-        ("beat_align_score", pa.float32()),            # AIST++ beat-align score (NaN: no music beats)
+        ("beat_align_score", pa.float32()),            # beat-align score, Bailando's (NaN: no music beats)
+        ("beat_align_score_aistpp", pa.float32()),     # beat-align score, AIST++'s (NaN: no motion beats)
         ("beat_f1", pa.float32()),                     # seed beat-consistency F-score, 2-frame tolerance
     ])
 
@@ -101,6 +114,9 @@ class Window:
     contact_probability: np.ndarray | None = None  # W x 4 (None: NaN)
     smpl_poses: np.ndarray | None = None  # W x 72 (None: NaN)
     smpl_trans: np.ndarray | None = None  # W x 3, the frame of world (None: NaN)
+    downbeat: np.ndarray | None = None    # W (None: zeros)
+    beat_phase: np.ndarray | None = None  # W (None: NaN)
+    bar_phase: np.ndarray | None = None   # W (None: NaN)
 
 
 def tensor_column(values: np.ndarray, dtype: pa.DataType, shape: tuple[int, ...]) -> pa.Array:
@@ -114,7 +130,8 @@ def tensor_column(values: np.ndarray, dtype: pa.DataType, shape: tuple[int, ...]
 def windows_table(windows: list[Window], window: int) -> pa.Table:
     schema = corpus_schema(window)
     tensors = ("motion", "mfcc", "chroma", "onset", "beat", "world_joints", "root", "contact", "rotations_6d",
-               "bone_lengths", "feet", "world_feet", "planted", "contact_probability", "smpl_poses", "smpl_trans")
+               "bone_lengths", "feet", "world_feet", "planted", "contact_probability", "smpl_poses", "smpl_trans",
+               "downbeat", "beat_phase", "bar_phase")
     defaults = {**BEAT_DEFAULTS, **WORLD_DEFAULTS}
     scalars = {name: [w.meta.get(name, defaults[name]) if name in defaults else w.meta[name] for w in windows]
                for name in schema.names if name not in tensors}
@@ -135,6 +152,9 @@ def windows_table(windows: list[Window], window: int) -> pa.Table:
                           (window, CHROMA_DIMS)),
         "onset": tensor_column(stack("onset", (window,)).astype(np.float32), pa.float32(), (window,)),
         "beat": tensor_column(stack("beat", (window,)).astype(np.int8), pa.int8(), (window,)),
+        "downbeat": tensor_column(np.nan_to_num(stack("downbeat", (window,))).astype(np.int8), pa.int8(), (window,)),
+        "beat_phase": tensor_column(stack("beat_phase", (window,)).astype(np.float32), pa.float32(), (window,)),
+        "bar_phase": tensor_column(stack("bar_phase", (window,)).astype(np.float32), pa.float32(), (window,)),
         "world_joints": tensor_column(world.astype(np.float32), pa.float32(), (window, 17, 3)),
         "root": tensor_column(world[:, :, 0].astype(np.float32), pa.float32(), (window, 3)),
         "contact": tensor_column(np.nan_to_num(stack("contact", (window, 2))).astype(np.int8), pa.int8(), (window, 2)),

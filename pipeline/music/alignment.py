@@ -4,9 +4,14 @@ Motion beats are AIST++'s kinematic beats: local minima of the mean joint speed 
 Gaussian smoothing of 5 frames at 60 fps (0.083 s), i.e. the instants where the dancer's
 movement turns. Two scores compare them with the music beats:
 
-- the **beat-align score** (AIST++ / Bailando's code): for every music beat, exp(-d^2 / 2
-  sigma^2) with d its distance to the nearest motion beat and sigma = 3 frames at 60 fps
-  (0.05 s), averaged over the music beats;
+- the **beat-align score** as Bailando computes it (lisiyao21/Bailando,
+  ``utils/beat_align_score.py``, and the papers that reuse its code): for every music beat,
+  exp(-d^2 / 2 sigma^2) with d its distance to the nearest motion beat and sigma = 3 frames at
+  60 fps (0.05 s), averaged over the music beats;
+- the **beat-align score** as AIST++ defines and computes it (google-research/mint,
+  ``tools/calculate_beat_scores.py``): the same kernel the other way round, for every motion
+  beat towards its nearest music beat, averaged over the motion beats. It rewards a dance with
+  few, well-placed turns; Bailando's rewards a dance that marks every beat;
 - the **beat-consistency F-score** (the seed system): mir_eval's F-measure of the motion
   beats against the music beats with a tolerance of 2 frames at the corpus rate.
 
@@ -40,13 +45,25 @@ def kinematic_beats(joints: np.ndarray, fps: float) -> np.ndarray:
 
 
 def beat_align_score(music_beats: np.ndarray, motion_beats: np.ndarray) -> float:
-    """AIST++ beat-align score of beat times in seconds (NaN without music beats; 0 without motion beats)."""
+    """Bailando's beat-align score of beat times in seconds (NaN without music beats; 0 without motion beats)."""
     music_beats, motion_beats = np.asarray(music_beats, float), np.asarray(motion_beats, float)
     if not len(music_beats):
         return float("nan")
     if not len(motion_beats):
         return 0.0
     d = np.abs(music_beats[:, None] - motion_beats[None, :]).min(axis=1)
+    return float(np.exp(-(d ** 2) / (2 * SIGMA_SECONDS ** 2)).mean())
+
+
+def beat_align_score_aistpp(music_beats: np.ndarray, motion_beats: np.ndarray) -> float:
+    """AIST++'s beat-align score: each motion beat towards its nearest music beat (NaN without motion
+    beats; 0 without music beats)."""
+    music_beats, motion_beats = np.asarray(music_beats, float), np.asarray(motion_beats, float)
+    if not len(motion_beats):
+        return float("nan")
+    if not len(music_beats):
+        return 0.0
+    d = np.abs(motion_beats[:, None] - music_beats[None, :]).min(axis=1)
     return float(np.exp(-(d ** 2) / (2 * SIGMA_SECONDS ** 2)).mean())
 
 
