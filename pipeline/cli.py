@@ -206,15 +206,19 @@ def _parser() -> argparse.ArgumentParser:
                         help="brighten images darker than this mean pixel value; 0: never (default: params.yaml)")
     pose2d.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
     beats = evaluate_sub.add_parser(
-        "beats", help="the beat tracker against beat annotations (mir_eval)",
-        description="Track beats in an audio file and score them against human annotations with mir_eval "
-                    "(F-measure +-70 ms, CMLt, AMLt, Cemgil, Goto, tempo error; downbeat F-measure when the "
-                    "annotation has bar positions; beats before 5 s ignored), next to the previous default "
-                    "(tracking on the motion-rate onset envelope).",
+        "beats", help="both beat trackers against beat annotations (mir_eval), per file",
+        description="Track beats with both trackers (rnn: madmom's RNN beats and bars, the default; librosa) and "
+                    "score them against human annotations with mir_eval (F-measure +-70 ms, CMLt, AMLt, Cemgil, "
+                    "Goto, tempo error; downbeat F-measure when the annotation has bar positions; beats before 5 s "
+                    "ignored), next to the first dance3d tracker (librosa on the motion-rate onset envelope); per "
+                    "file and the mean. Give --audio/--beats pairs (repeatable) or --dir.",
         epilog="annotation format: one beat per line, 'time' or 'time bar_position' (1 = downbeat), "
                "separated by spaces, commas or semicolons; '#' starts a comment.")
-    beats.add_argument("--audio", type=Path, required=True, help="any audio (or video) file ffmpeg reads")
-    beats.add_argument("--beats", type=Path, required=True, help="the annotation file")
+    beats.add_argument("--audio", type=Path, action="append", default=[],
+                       help="any audio (or video) file ffmpeg reads (repeatable, each with its --beats)")
+    beats.add_argument("--beats", type=Path, action="append", default=[], help="its annotation file")
+    beats.add_argument("--dir", type=Path, default=None,
+                       help="a folder of audio files, each with its annotation of the same name (.beats or .txt)")
     beats.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
     segments = evaluate_sub.add_parser(
         "segments", help="proposed dance segments against the human rows of annotations/segments.csv",
@@ -385,9 +389,14 @@ def _eval(root: Path, args: argparse.Namespace) -> int:
 
             result = evaluate_project(root)
         else:
-            from pipeline.music.evaluate import evaluate_beats, format_table
+            from pipeline.music.evaluate import evaluate_files, format_table, pairs_in
 
-            result = evaluate_beats(args.audio, args.beats)
+            pairs = list(zip(args.audio, args.beats)) + (pairs_in(args.dir) if args.dir else [])
+            if not pairs or len(args.audio) != len(args.beats):
+                print("dance3d eval beats: give --audio A --beats B (as many pairs as you like) or --dir D with "
+                      "audio files and their .beats annotations", file=sys.stderr)
+                return 2
+            result = evaluate_files(pairs)
     except Dance3dError as exc:
         print(f"dance3d: {exc}", file=sys.stderr)
         return 2
@@ -410,12 +419,22 @@ def _capture_eval_options(parser: argparse.ArgumentParser, seconds: float) -> No
 
 
 def _lift_models(root: Path, args: argparse.Namespace) -> tuple[Path, Path | None]:
-    """The lifter and contact model: the options', else params.yaml lift's."""
+    """The lifter and contact model: the options', else params.yaml lift's, else (a fresh clone, where
+    train_lifter and train_contact have not run) the shipped ones, saying so."""
     from pipeline.core.params import load_params, stage_params
+    from pipeline.motion.shipped import SHIPPED_CONTACT, SHIPPED_LIFTER, model_or_shipped
 
     lift = stage_params(load_params(root / "params.yaml"), "lift")
-    model = args.model or root / lift.get("model", "models/lifter.onnx")
-    return model, args.contact or (root / lift["contact_model"] if lift.get("contact_model") else None)
+    model, contact = args.model, args.contact
+    if model is None:
+        model, notice = model_or_shipped(root / lift.get("model", "models/lifter.onnx"), SHIPPED_LIFTER, "lifter")
+        if notice:
+            print(f"dance3d: {notice}", file=sys.stderr)
+    if contact is None and lift.get("contact_model"):
+        contact, notice = model_or_shipped(root / lift["contact_model"], SHIPPED_CONTACT, "contact model")
+        if notice:
+            print(f"dance3d: {notice}", file=sys.stderr)
+    return model, contact
 
 
 def _fetch_models(root: Path, args: argparse.Namespace) -> int:
@@ -560,7 +579,7 @@ def _sample(root: Path, args: argparse.Namespace) -> int:
 
     from pipeline.core.storage import write_parquet
     from pipeline.motion.motionfile import MotionClip, clips_to_table
-    from pipeline.music.audio import compute_features, load_for_features
+    from pipeline.music.audio import features_of_file
     from pipeline.train.dataset import WindowDataset
     from pipeline.train.loop import load_model
     from pipeline.train.model import generate
@@ -573,7 +592,7 @@ def _sample(root: Path, args: argparse.Namespace) -> int:
         print(f"dance3d: {corpus}: no corpus windows to take a seed pose from", file=sys.stderr)
         return 2
     model = load_model(model_path)
-    feats = compute_features(load_for_features(args.music))
+    feats = features_of_file(args.music)
     total = args.seed_frames + args.frames
     if feats.frames < total:
         print(f"dance3d: {args.music}: {feats.frames / 24:.1f} s of music is too short for {total} frames",

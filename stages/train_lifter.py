@@ -17,11 +17,17 @@ from pipeline.core.errors import InputError
 from pipeline.core.params import load_params, stage_params, with_profile
 from pipeline.core.paths import LIFTER, METRICS
 from pipeline.core.stage import run_stage, setup_logging
+from pipeline.motion.shipped import (
+    SHIPPED_LIFTER,
+    copy_shipped,
+    mocap_root,
+    recorded_metrics,
+    write_training_outputs,
+)
 from pipeline.motion.shipped import config_from_params as shipped_config
-from pipeline.motion.shipped import copy_shipped, mocap_root, recorded_metrics, write_training_outputs
 
 log = logging.getLogger("dance3d.train_lifter")
-SHIPPED = Path(__file__).resolve().parents[1] / "pipeline/motion/lifting/weights/lifter_dance3d.onnx"
+SHIPPED = SHIPPED_LIFTER  # the model that ships in the package
 
 
 def config_from_params(params: dict):

@@ -15,6 +15,17 @@ from pathlib import Path
 from pipeline.core.errors import InputError
 from pipeline.core.storage import atomic_path, write_json
 
+SHIPPED_LIFTER = Path(__file__).resolve().parent / "lifting/weights/lifter_dance3d.onnx"
+SHIPPED_CONTACT = Path(__file__).resolve().parent / "world/weights/contact_dance3d.onnx"
+
+
+def model_or_shipped(path: Path, shipped: Path, what: str) -> tuple[Path, str | None]:
+    """``path`` when it exists, else the shipped model and a line saying so (a fresh clone has no
+    models/ until train_lifter and train_contact run)."""
+    if Path(path).is_file():
+        return Path(path), None
+    return shipped, f"{path} does not exist: using the shipped {what} ({shipped.name})"
+
 
 def mocap_root(root: Path, params: Mapping, section: str) -> Path:
     """The motion-capture folder of a training stage: ``<section>.mocap`` or $DANCE3D_MOCAP."""

@@ -255,3 +255,24 @@ def test_the_ground_stage_writes_world_files_that_read_back_and_skips_them_when_
     stamp = (tmp_path / WORLD / "vid_000.parquet").stat().st_mtime_ns
     run(tmp_path)  # up to date: not rewritten
     assert (tmp_path / WORLD / "vid_000.parquet").stat().st_mtime_ns == stamp
+
+
+def test_eval_world_in_a_fresh_clone_uses_the_shipped_models_and_says_so(mocap_dir: Path, tmp_path: Path,
+                                                                         capsys) -> None:
+    """No models/ folder (train_lifter and train_contact never ran): the shipped lifter and contact
+    model are scored, and the report names them."""
+    import shutil
+
+    from pipeline.cli import main
+    from stages.train_contact import SHIPPED as CONTACT
+    from stages.train_lifter import SHIPPED as LIFTER
+
+    shutil.copy(Path(__file__).resolve().parents[2] / "params.yaml", tmp_path / "params.yaml")
+    out = tmp_path / "world.json"
+    assert main(["--root", str(tmp_path), "eval", "world", "--mocap", str(mocap_dir / "perfume"), "--seconds", "4",
+                 "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "models/lifter.onnx does not exist: using the shipped lifter" in err
+    assert "models/contact.onnx does not exist: using the shipped contact model" in err
+    protocol = json.loads(out.read_text())["protocol"]
+    assert protocol["lifter"] == str(LIFTER) and protocol["contact_model"] == str(CONTACT)
