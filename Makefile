@@ -23,7 +23,7 @@ DANCE3D_POSE2D_EVAL ?= $(abspath ../shared/pose2d_eval)
 endif
 export DANCE3D_MEDIA DANCE3D_MODELS DANCE3D_MOCAP DANCE3D_POSE2D_EVAL
 
-.PHONY: setup lock demo models test test-fast browser clean-demo
+.PHONY: setup lock demo models test test-fast docs browser clean-demo
 
 setup: $(VENV)/.installed
 
@@ -32,7 +32,7 @@ $(VENV)/.installed: pyproject.toml requirements.lock
 	$(PYTHON) -m venv $(VENV)
 	# torch first: the CPU wheel, so the `train` extra does not pull CUDA packages.
 	$(BIN)/pip install --quiet -c requirements.lock pip torch
-	$(BIN)/pip install --quiet -c requirements.lock -e '.[train,dev,ray]'
+	$(BIN)/pip install --quiet -c requirements.lock -e '.[train,dev,ray,docs]'
 	touch $@
 
 # Refresh requirements.lock: resolve pyproject.toml's ranges afresh in a throw-away venv
@@ -43,7 +43,7 @@ lock:
 	$(PYTHON) -m venv $(LOCK_VENV)
 	$(LOCK_VENV)/bin/pip install --quiet --upgrade pip
 	$(LOCK_VENV)/bin/pip install --quiet torch==2.13.0
-	$(LOCK_VENV)/bin/pip install --quiet '.[train,dev,ray]'
+	$(LOCK_VENV)/bin/pip install --quiet '.[train,dev,ray,docs]'
 	{ echo "# Exact versions CI tests with (pip constraints). Regenerate with 'make lock'."; \
 	  echo "# torch is the CPU build: install it before the project (see the Makefile)."; \
 	  $(LOCK_VENV)/bin/pip freeze --all --exclude-editable | grep -v '^dance3d' | sed 's/^torch==\([^+]*\)+cpu/torch==\1/'; \
@@ -63,6 +63,11 @@ test: setup
 
 test-fast: setup
 	PATH="$(BIN):$$PATH" pytest -m "not slow"
+
+# The documentation site: the reference pages generated from the code, then MkDocs into site/.
+docs: setup
+	$(BIN)/python -m pipeline.reference docs/reference
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
 
 # Debian's Chromium and chromedriver, for the review page's browser test (needs root).
 browser:

@@ -65,7 +65,7 @@ def _parser() -> argparse.ArgumentParser:
                                         "or delete its rows of annotations/segments.csv with the same keys "
                                         "(checked as the trim stage checks). Loopback only unless --host says "
                                         "otherwise.")
-    review.add_argument("--port", type=int, default=8765)
+    review.add_argument("--port", type=int, default=8765, help="the local port to serve the page on (default 8765)")
     review.add_argument("--host", default="127.0.0.1",
                         help="interface to listen on (default: loopback only). Any other (e.g. 0.0.0.0 for a "
                              "team on a lab server) requires a token, printed in the start-up addresses "
@@ -78,7 +78,7 @@ def _parser() -> argparse.ArgumentParser:
                            description="Re-run the items listed in the stage's _failures.parquet, leaving the "
                                        "others as they are (for download and trim, whose finished items are "
                                        "always kept, this is a plain re-run).")
-    retry.add_argument("stage", choices=sorted(FAILURE_DIRS))
+    retry.add_argument("stage", choices=sorted(FAILURE_DIRS), help="the stage whose failed items to run again")
     qc = sub.add_parser("qc", help="render a segment's QC video (boxes, skeletons, track ids, timecodes)",
                         description="Render data/qc/<segment_id>.mp4 from the segment's tracks, read straight from "
                                     "its downloaded video (with audio), and print its path. A QC video newer than "
@@ -88,7 +88,7 @@ def _parser() -> argparse.ArgumentParser:
     sub.add_parser("status", help="summarise downloads, segments and failures",
                    description="Summarise the download ledger, the segment index and every stage's failures.")
     manifests = sub.add_parser("manifests", help="track manifests for annotators (seed, check)",
-                               description="Track manifests: manifests/tracks/<segment_id>.csv. See ANNOTATING.md.")
+                               description="Track manifests: manifests/tracks/<segment_id>.csv. See docs/tutorials/annotating.md.")
     msub = manifests.add_subparsers(dest="action", required=True, metavar="ACTION")
     msub.add_parser("seed", help="write a proposal for every tracked segment that has no manifest",
                     description="Write manifests/tracks/<segment_id>.csv proposals for tracked segments without "
@@ -177,7 +177,7 @@ def _parser() -> argparse.ArgumentParser:
     sample.add_argument("music", type=Path, help="an audio file (any format ffmpeg reads)")
     sample.add_argument("out", type=Path, help="the motion Parquet file to write")
     sample.add_argument("--frames", type=int, default=240, help="frames to generate at 24 fps (default 240)")
-    sample.add_argument("--model", type=Path, default=Path("models/tsmt.pt"))
+    sample.add_argument("--model", type=Path, default=Path("models/tsmt.pt"), help="the trained model (train stage)")
     sample.add_argument("--corpus", type=Path, default=Path("data/corpus"), help="where the seed window comes from")
     sample.add_argument("--seed-frames", type=int, default=24, help="frames of the seed pose (default 24)")
     sample.add_argument("--temperature", type=float, default=0.0, help="0: most likely bins; > 0: sample")
@@ -317,8 +317,8 @@ def _parser() -> argparse.ArgumentParser:
         description="Load an official VideoPose3D checkpoint (e.g. pretrained_h36m_detectron_coco.bin: 17 COCO "
                     "joints in, 17 Human3.6M joints out) and export it as the ONNX lifter the lift stage uses. "
                     "Needs the `train` extra (torch). The official weights are CC BY-NC 4.0.")
-    convert.add_argument("checkpoint", type=Path)
-    convert.add_argument("out", type=Path)
+    convert.add_argument("checkpoint", type=Path, help="the VideoPose3D .bin checkpoint")
+    convert.add_argument("out", type=Path, help="the .onnx file to write (lift.model reads it)")
     return parser
 
 

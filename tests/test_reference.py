@@ -1,0 +1,35 @@
+"""The docs' reference pages come from the code: every params.yaml key and every command has words,
+and the pages name them all."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pipeline.cli import _parser
+from pipeline.reference import commands, param_docs, undocumented_commands, undocumented_params, write_reference
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_every_params_key_says_what_it_means() -> None:
+    assert undocumented_params(ROOT / "params.yaml") == []
+
+
+def test_every_command_and_option_has_help() -> None:
+    assert undocumented_commands(_parser()) == []
+
+
+def test_a_key_without_a_comment_is_caught(tmp_path: Path) -> None:
+    (tmp_path / "params.yaml").write_text("stage:            # a stage\n  known: 1   # one\n  bare: 2\n"
+                                          "  profiles:\n    a:\n      known: 3\n      other: 4\n")
+    assert undocumented_params(tmp_path / "params.yaml") == ["stage.bare", "stage.profiles.a.other"]
+
+
+def test_the_generated_pages_name_every_key_command_and_stage(tmp_path: Path) -> None:
+    import yaml
+
+    pages = {p.name: p.read_text() for p in write_reference(ROOT, tmp_path)}
+    assert all(f"`{d.path}`" in pages["params.md"] for d in param_docs(ROOT / "params.yaml") if "." in d.path)
+    assert all(f"## {line}" in pages["cli.md"] for line, _ in commands(_parser()))
+    assert all(f"## {name}" in pages["stages.md"] for name in yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"])
+    assert "`smpl_poses`" in pages["schemas.md"] and "`beat_phase`" in pages["schemas.md"]
