@@ -39,7 +39,7 @@ def variants(steps: int) -> dict[str, LifterConfig]:
     choreo = replace(previous, sources=SOURCES)
     noise = replace(choreo, augment=replace(old_augment, pose_noise=(0.0, 0.5)))
     losses = replace(noise, velocity_weight=0.5, bone_weight=0.5)
-    centred = replace(noise, input_norm="centred")  # the loss terms did not help (README): left out
+    centred = replace(noise, input_norm="centred")  # the loss terms did not help (docs/pipeline/3d.md): left out
     framing = replace(centred, augment=replace(centred.augment, fill=(0.2, 0.95)))
     return {"previous": previous, "+choreonet": choreo, "+noise": noise, "+losses": losses, "+centred": centred,
             "+framing": framing, "+feet": replace(framing, feet=True), "rf81": replace(framing, filter_widths=(3, 3, 3, 3), channels=256),

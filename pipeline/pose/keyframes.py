@@ -7,7 +7,7 @@ keyframes divides the models' work by k. A person is followed from one keyframe 
 their boxes' overlap; a person seen on only one of the two keyframes is held from it over the
 half of the gap nearer to it.
 A joint is as confident in between as it is on the less confident of its two keyframes.
-(Measured against posing every frame in ``benchmarks/pose2d_fastpath.py``; README, "2D speed".)
+(Measured against posing every frame in ``benchmarks/pose2d_fastpath.py``; docs/pipeline/pose2d.md, "2D speed".)
 """
 
 from __future__ import annotations

@@ -116,7 +116,7 @@ def add_pose_noise(xy: np.ndarray, rng: np.random.Generator, level: float = OKS8
     ``frame_share`` of the noise's variance is drawn afresh on every frame; the rest drifts slowly
     (white noise smoothed over ``slow_frames``, a Gaussian's sigma, rescaled to unit variance), as a
     real pose model's error on video mostly does: it follows the person's look, which changes
-    slowly (``dance3d eval world --frame-noise``; README, "2D speed")."""
+    slowly (``dance3d eval world --frame-noise``; docs/pipeline/pose2d.md, "2D speed")."""
     span = xy[:, :17].max(1) - xy[:, :17].min(1)
     size = np.sqrt(np.maximum(span[:, 0] * span[:, 1], 1.0))[:, None, None]
     sigmas = KEYPOINT_SIGMAS[: xy.shape[1]]

@@ -39,7 +39,7 @@ class LifterConfig:
     input_norm: str = "centred"    # screen: VideoPose3D's; centred: about the hips, by the body's size (geometry.py)
     feet: bool = False             # also take and return the heels and toe tips (21 joints in and out)
     sources: tuple[str, ...] = SOURCES
-    # Held out by performer where a source names them, else by take (see README, "3D lifting").
+    # Held out by performer where a source names them, else by take (see docs/pipeline/3d.md).
     holdout: tuple[str, ...] = HOLDOUT
     eval_seconds: float = 60.0     # held-out protocol: at most this much of each sequence
     augment: AugmentOptions = field(default_factory=AugmentOptions)

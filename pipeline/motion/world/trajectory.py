@@ -111,7 +111,7 @@ def align_scale_offset(pred: np.ndarray, true: np.ndarray) -> np.ndarray:
 
 
 # Noise scales of the refiner's terms (metres), chosen on the protocol's noisy 2D of the lifter's
-# training sequences (``dance3d eval world`` figures, README): the per-frame root is sure across
+# training sequences (``dance3d eval world`` figures, docs/pipeline/3d.md): the per-frame root is sure across
 # its viewing ray, unsure along it (0.25 m once it is placed by the turned one-skeleton pose;
 # 0.5 m before, when each frame's bones wobbled). With the floor fixing the depth at contacts, a
 # smoother path between them (5 mm per frame^2, from 10) took a third of the training sequences'
