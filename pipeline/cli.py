@@ -88,7 +88,8 @@ def _parser() -> argparse.ArgumentParser:
     sub.add_parser("status", help="summarise downloads, segments and failures",
                    description="Summarise the download ledger, the segment index and every stage's failures.")
     manifests = sub.add_parser("manifests", help="track manifests for annotators (seed, check)",
-                               description="Track manifests: manifests/tracks/<segment_id>.csv. See docs/tutorials/annotating.md.")
+                               description="Track manifests: manifests/tracks/<segment_id>.csv. "
+                                           "See docs/tutorials/annotating.md.")
     msub = manifests.add_subparsers(dest="action", required=True, metavar="ACTION")
     msub.add_parser("seed", help="write a proposal for every tracked segment that has no manifest",
                     description="Write manifests/tracks/<segment_id>.csv proposals for tracked segments without "

@@ -1,4 +1,4 @@
-"""trim stage: data/raw + annotations/segments.csv -> data/segments/index.parquet.
+"""trim stage: data/raw + annotations/segments.csv (+ data/segment_proposals) -> data/segments/index.parquet.
 
 Each segment is a view on its downloaded video (pipeline/ingest/trim.py): the index gives its
 clock, size and source; no video or audio is copied."""
@@ -18,9 +18,9 @@ from pipeline.core.itemstage import StageReport, WorkItem, run_item_stage
 from pipeline.core.params import load_params, stage_params
 from pipeline.core.paths import ANNOTATIONS, RAW, SEGMENT_PROPOSALS, SEGMENTS
 from pipeline.core.stage import run_stage, setup_logging
-from pipeline.core.storage import code_fingerprint, fingerprint, item_files
+from pipeline.core.storage import code_fingerprint, fingerprint
 from pipeline.ingest.catalog import INDEX, INDEX_VERSION, read_index, read_ledger, write_index
-from pipeline.ingest.segments import plan_segments
+from pipeline.ingest.segments import plan_segments, proposals_by_video, remove_segment_copies
 from pipeline.ingest.trim import PlanJob, TrimOptions, plan_job
 
 log = logging.getLogger("dance3d.trim")
@@ -34,7 +34,7 @@ def run(root: Path) -> None:
     ledger = read_ledger(raw_dir)
     available = {r["video_id"]: r for r in ledger.values() if r["status"] == "ok"}
     unannotated = str(params.get("unannotated", "skip"))
-    proposed = proposed_segments(root) if unannotated == "proposals" else {}
+    proposed = proposals_by_video(root / SEGMENT_PROPOSALS) if unannotated == "proposals" else {}
     try:
         plan = plan_segments(root / ANNOTATIONS, {v: r["duration"] for v, r in available.items()},
                              known_videos={r["video_id"] for r in ledger.values() if r["video_id"]},
@@ -60,29 +60,10 @@ def run(root: Path) -> None:
         write_index(seg_dir, [rows[s.segment_id] for s in plan if s.segment_id in rows], params)
         log.info("index: %d segments, %d failed", len(rows), len(report.failures))
 
-    _remove_copies(seg_dir)
+    if removed := remove_segment_copies(seg_dir):
+        log.info("removed %d segment copies made before segments became views on data/raw", removed)
     run_item_stage("trim", items, plan_job, out_dirs=[seg_dir], params=params, up_to_date=up_to_date,
                    keep_files=frozenset({INDEX}), finish=write, light=True)  # plans: a probe each
-
-
-def proposed_segments(root: Path) -> dict[str, list[tuple[float, float, str]]]:
-    """The propose_segments stage's proposals by video (none for a video it has not seen)."""
-    from pipeline.ingest.propose import read_proposals
-
-    out = {}
-    for path in item_files(root / SEGMENT_PROPOSALS):
-        found = read_proposals(path)
-        out[found["video_id"]] = [(s["start"], s["end"], f"proposed: {s['reason']}") for s in found["segments"]]
-    return out
-
-
-def _remove_copies(seg_dir: Path) -> None:
-    """Index version 1 wrote an mp4 and a wav per segment; views need neither."""
-    copies = [p for pattern in ("*.mp4", "*.wav") for p in seg_dir.glob(pattern)] if seg_dir.exists() else []
-    for path in copies:
-        path.unlink()
-    if copies:
-        log.info("removed %d segment copies made before segments became views on data/raw", len(copies))
 
 
 def main() -> int:

@@ -150,7 +150,8 @@ def write_manifest(path: Path, spans: list[Span], tracks_fingerprint: str = "") 
         rows.append([s.track_id, format_seconds(s.start), format_seconds(s.end), "yes" if s.keep else "no", s.note,
                      *(s.info.get(c, "") for c in INFO)])
     comments = [f"{TRACKS_COMMENT}{tracks_fingerprint}"] if tracks_fingerprint else []
-    comments.append("start/end: QC timecodes (s) of the first and last frame to keep; keep: yes/no. See docs/tutorials/annotating.md")
+    comments.append("start/end: QC timecodes (s) of the first and last frame to keep; keep: yes/no. "
+                    "See docs/tutorials/annotating.md")
     write_csv(path, HEADER, rows, comments)
 
 

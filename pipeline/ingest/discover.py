@@ -23,6 +23,7 @@ from yt_dlp.utils import unsmuggle_url
 
 from pipeline.core.errors import RateLimitedError
 from pipeline.core.ids import slug_id
+from pipeline.core.paths import SOURCES
 from pipeline.ingest.download import DownloadOptions, _clean, _YtdlpLog, classify_error
 from pipeline.ingest.sources import Source
 
@@ -39,6 +40,19 @@ class DiscoverOptions:
     title_include: str = ""       # regular expression (case-insensitive) a title must match
     title_exclude: str = ""       # regular expression a title must not match
     stop_after_known: int = 10    # a re-run stops listing after this many already-known entries in a row
+
+    @staticmethod
+    def from_params(section: dict) -> "DiscoverOptions":
+        """From params.yaml's ``discover`` section (empty values: no limit)."""
+        return DiscoverOptions(
+            max_videos=int(section.get("max_videos", 0) or 0),
+            date_after=str(section.get("date_after", "") or ""),
+            date_before=str(section.get("date_before", "") or ""),
+            min_duration=float(section.get("min_duration", 0) or 0),
+            max_duration=float(section.get("max_duration", 0) or 0),
+            title_include=str(section.get("title_include", "") or ""),
+            title_exclude=str(section.get("title_exclude", "") or ""),
+            stop_after_known=int(section.get("stop_after_known", 10)))
 
 
 @dataclass(frozen=True)
@@ -221,3 +235,45 @@ def entry_sources(feed: Source, rows: list[dict]) -> list[Source]:
                     channel=r["channel"], licence=r["licence"], title=r["title"], upload_date=r["upload_date"],
                     tags=tuple(r["tags"] or ()), kind="video", sha256="", url_error="")
             for r in rows if r["selected"]]
+
+
+@dataclass
+class Discovery:
+    """What listing every list found: its rows by list URL, the lists that failed, and the
+    rate-limit message that stopped listing ('' when none did)."""
+
+    found: dict[str, list[dict]]
+    failures: list[tuple[Source, str, str]]  # (list row, error class, message)
+    throttled: str = ""
+
+
+def discover_lists(lists: list[Source], previous: dict[str, list[dict]], opts: DiscoverOptions,
+                   net: DownloadOptions, taken: set[str]) -> Discovery:
+    """List every list row politely (a pause between lists, a stop at the first rate limit); a list
+    that fails or is not reached keeps what earlier runs found."""
+    out = Discovery({}, [])
+    for n, feed in enumerate(lists):
+        before = previous.get(feed.url, [])
+        out.found[feed.url] = before
+        if out.throttled or feed.url_error:
+            if feed.url_error:
+                out.failures.append((feed, "invalid_url", feed.url_error))
+            continue
+        if n and net.sleep_interval:
+            time.sleep(net.sleep_interval)
+        started = time.perf_counter()
+        try:
+            entries = list(list_entries(feed.url, net, {r["url"] for r in before}, opts.stop_after_known))
+        except RateLimitedError as exc:
+            out.throttled = str(exc)
+            continue
+        except RuntimeError as exc:
+            out.failures.append((feed, "discover_error", f"{feed.url}: {exc}"))
+            log.warning("%s: %s: %s", feed.where(SOURCES), feed.url, exc)
+            continue
+        rows = merge(before, feed, entries, taken)
+        out.found[feed.url] = rows
+        log.info("%s: %s: %d entries listed in %.1f s, %d new, %d in the catalogue",
+                 feed.where(SOURCES), feed.url, len(entries), time.perf_counter() - started,
+                 len(rows) - len(before), len(rows))
+    return out
