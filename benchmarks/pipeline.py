@@ -10,14 +10,19 @@ a fresh temporary project holding a copy of the code under test, on a set of vid
 - ``mixed``: the solo dancer with music and the three group-dance clips with music (a duet, a trio,
   a line dance of four to six with bystanders and a panning camera), each processed whole.
 
-Per stage and in total it reports wall time, video-seconds per wall-second (of the segmented
-video the stages work on; download counts the downloaded duration), CPU use in cores
+Per stage and in total it reports wall time, its share of the whole wall, video-seconds per
+wall-second (of the segmented video the stages work on; download counts the downloaded duration), CPU use in cores
 (user + system time of the stage and its children / wall), peak memory (resident set of the
 stage's whole process tree, sampled every 50 ms) and bytes written per minute of source
 video. The footprint line sums everything under data/ except the downloads and the corpus,
 against the bytes downloaded. train_lifter is run for the lift stage to have a model (it copies
 the shipped lifter; trees older than the shipped lifter train a few steps), but counts in no
 total: it does not depend on the videos.
+
+With ``--cold``, each tree also runs the whole pipeline on a 3 s clip (the solo dancer with
+music) in every round; a stage's wall there is its fixed cost (process start, imports, model
+loading, numba compilation), reported apart, and the rest of its wall per second of video is its
+per-second cost.
 
 Several ``--code`` trees (e.g. a worktree of an older commit) are run alternately in one
 invocation, so their ratios are measured side by side on the same machine state; medians of
@@ -91,6 +96,14 @@ def long_set(media: Path, out: Path) -> list[tuple[str, Path]]:
     ffmpeg("-i", str(silent), "-stream_loop", "-1", "-i", str(videos / "musicians_trio_music_raga.mp4"),
            "-map", "0:v", "-map", "1:a", "-c:v", "copy", "-c:a", "aac", "-shortest", str(group))
     return [("long_single", single), ("five_people", group)]
+
+
+def tiny_set(media: Path, out: Path) -> list[tuple[str, Path]]:
+    """3 s of the solo dancer with music: what every stage costs before any video does."""
+    clip = out / "tiny.mp4"
+    ffmpeg("-i", str(media / "videos" / MIXED_VIDEOS[0]), "-t", "3", "-c:v", "libx264", "-preset", "veryfast",
+           "-c:a", "aac", str(clip))
+    return [("tiny", clip)]
 
 
 def mixed_set(media: Path) -> list[tuple[str, Path]]:
@@ -199,7 +212,7 @@ def run_pipeline(code: Path, root: Path, which: str, long_videos) -> dict:
             "intermediate_bytes": intermediate, "sizes": sizes}
 
 
-def summarise(runs: list[dict]) -> dict:
+def summarise(runs: list[dict], cold: list[dict] = ()) -> dict:
     first = runs[0]
     minutes = first["raw_seconds"] / 60
     out = {"raw_seconds": round(first["raw_seconds"], 2), "segment_seconds": round(first["segment_seconds"], 2),
@@ -213,10 +226,16 @@ def summarise(runs: list[dict]) -> dict:
             "cpu_cores": round(cpu / wall, 2) if wall else None,
             "peak_mib": round(statistics.median(r["stages"][stage]["peak_mib"] for r in runs), 1),
             "mb_written_per_source_minute": round(first["stages"][stage]["bytes"] / 2 ** 20 / minutes, 2)}
+        if cold and all(stage in c["stages"] for c in cold):
+            fixed = statistics.median(c["stages"][stage]["wall_s"] for c in cold)
+            out["stages"][stage]["cold_s"] = round(fixed, 2)
+            out["stages"][stage]["wall_s_per_video_s"] = round(max(0.0, wall - fixed) / seconds, 4)
     total = [sum(r["stages"][s]["wall_s"] for s in r["stages"] if s not in NOT_PER_VIDEO) for r in runs]
     out["total"] = {"wall_s": round(statistics.median(total), 2),
                     "segment_s_per_wall_s": round(first["segment_seconds"] / statistics.median(total), 3),
                     "peak_mib": round(max(out["stages"][s]["peak_mib"] for s in out["stages"]), 1)}
+    for stage, row in out["stages"].items():
+        row["share"] = round(row["wall_s"] / out["total"]["wall_s"], 3) if stage not in NOT_PER_VIDEO else None
     out["footprint"] = {"downloaded_mib": round(first["raw_bytes"] / 2 ** 20, 2),
                         "intermediate_mib": round(first["intermediate_bytes"] / 2 ** 20, 2),
                         "intermediate_over_downloads": round(first["intermediate_bytes"] / first["raw_bytes"], 3),
@@ -255,14 +274,17 @@ def compare_corpora(a: Path, b: Path) -> dict:
 
 def table(name: str, summary: dict) -> str:
     lines = [f"{name}: {summary['segment_seconds']} s of segments from {summary['raw_seconds']} s downloaded",
-             "| stage | wall s | video s / wall s | CPU cores | peak MiB | MB written / source min |",
-             "|---|---|---|---|---|---|"]
+             "| stage | wall s | share | cold s | wall s per video s | video s / wall s | CPU cores | peak MiB | "
+             "MB written / source min |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for stage, s in summary["stages"].items():
         mark = " (not per video)" if stage in NOT_PER_VIDEO else ""
-        lines.append(f"| {stage}{mark} | {s['wall_s']} | {s['video_s_per_wall_s']} | {s['cpu_cores']} | "
+        share = f"{100 * s['share']:.1f} %" if s.get("share") is not None else ""
+        lines.append(f"| {stage}{mark} | {s['wall_s']} | {share} | {s.get('cold_s', '')} | "
+                     f"{s.get('wall_s_per_video_s', '')} | {s['video_s_per_wall_s']} | {s['cpu_cores']} | "
                      f"{s['peak_mib']} | {s['mb_written_per_source_minute']} |")
     t, f = summary["total"], summary["footprint"]
-    lines.append(f"| **download → shard** | {t['wall_s']} | {t['segment_s_per_wall_s']} | | {t['peak_mib']} | |")
+    lines.append(f"| **download → shard** | {t['wall_s']} | | | | {t['segment_s_per_wall_s']} | | {t['peak_mib']} | |")
     lines.append(f"intermediates {f['intermediate_mib']} MiB = {f['intermediate_over_downloads']}x the downloads "
                  f"({f['downloaded_mib']} MiB): {f['by_folder_mib']}")
     return "\n".join(lines)
@@ -275,6 +297,8 @@ def main() -> None:
                         help="a code tree to run (repeatable; default: this checkout)")
     parser.add_argument("--runs", type=int, default=1, help="runs per code tree (medians are reported)")
     parser.add_argument("--json", type=Path, help="also write the results here")
+    parser.add_argument("--cold", action="store_true",
+                        help="also run each tree on a 3 s clip every round: the stages' fixed costs, apart")
     parser.add_argument("--keep", type=Path, help="keep the projects in this folder (default: a temporary one)")
     args = parser.parse_args()
     for var in ("DANCE3D_MEDIA", "DANCE3D_MODELS", "DANCE3D_MOCAP"):
@@ -285,17 +309,23 @@ def main() -> None:
     work.mkdir(parents=True, exist_ok=True)
     media = Path(os.environ["DANCE3D_MEDIA"])
     long_videos = {"long": lambda: long_set(media, work), "mixed": lambda: mixed_set(media)}.get(args.set, list)()
+    tiny = tiny_set(media, work) if args.cold else []
     runs: dict[int, list[dict]] = {i: [] for i in range(len(codes))}
+    colds: dict[int, list[dict]] = {i: [] for i in range(len(codes))}
     last_root: dict[int, Path] = {}
     for r in range(args.runs):
         for i, code in enumerate(codes):  # alternate the trees so both see the same machine state
             root = work / f"code{i}-run{r}"
             runs[i].append(run_pipeline(code, root, args.set, long_videos))
+            if tiny:
+                colds[i].append(run_pipeline(code, work / f"code{i}-cold{r}", "tiny", tiny))
+                if not args.keep:
+                    shutil.rmtree(work / f"code{i}-cold{r}", ignore_errors=True)
             if i in last_root and not args.keep:
                 shutil.rmtree(last_root[i], ignore_errors=True)
             last_root[i] = root
     results = {"set": args.set, "runs": args.runs, "codes": [str(c) for c in codes],
-               "summaries": [summarise(runs[i]) for i in range(len(codes))], "raw_runs": runs}
+               "summaries": [summarise(runs[i], colds[i]) for i in range(len(codes))], "raw_runs": runs}
     for code, summary in zip(codes, results["summaries"]):
         print(table(str(code), summary), end="\n\n", flush=True)
     if args.json:

@@ -33,3 +33,9 @@ def test_the_generated_pages_name_every_key_command_and_stage(tmp_path: Path) ->
     assert all(f"## {line}" in pages["cli.md"] for line, _ in commands(_parser()))
     assert all(f"## {name}" in pages["stages.md"] for name in yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"])
     assert "`smpl_poses`" in pages["schemas.md"] and "`beat_phase`" in pages["schemas.md"]
+
+
+def test_stage_modules_only_wire() -> None:
+    """A stage module reads params, builds jobs and hands them to its package: 90 lines at most."""
+    long = {p.name: n for p in (ROOT / "stages").glob("*.py") if (n := len(p.read_text().splitlines())) > 90}
+    assert long == {}
