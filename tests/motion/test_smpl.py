@@ -113,6 +113,21 @@ def test_motion_made_on_the_smpl_skeleton_comes_back_at_its_joints():
     assert sum(report.outside.values()) == 0
 
 
+def test_a_knee_turned_further_than_a_hip_turns_is_bent_in_the_nearest_plane_the_body_allows():
+    """3D noise can swing a bent knee round further than a hip turns (here 80 degrees out): the leg
+    then bends in a plane a hip allows (60 degrees about the leg from neutral), the ankle where it
+    was, the hip in its range."""
+    local, trans, scale = smpl_dance(frames=24)
+    turn = Rotation.from_rotvec([0.0, np.radians(80.0), 0.0]).as_matrix()  # about the thigh (y)
+    local[:, J["left_hip"]] = local[:, J["left_hip"]] @ turn
+    truth = forward(local, trans, scale)
+    motion = retarget(as_h36m(truth))
+    ankle = np.linalg.norm(motion.joints[:, J["left_ankle"]] - truth[:, J["left_ankle"]], axis=-1)
+    assert ankle.max() < 1e-6
+    assert checks.joint_ranges(motion).outside["left_hip"] == 0
+    assert np.linalg.norm(motion.joints[:, J["left_knee"]] - truth[:, J["left_knee"]], axis=-1).min() > 0.03
+
+
 def test_feet_point_at_the_ball_of_the_foot():
     local, trans, scale = smpl_dance(24)
     truth = forward(local, trans, scale)

@@ -40,6 +40,11 @@ _X, _Y, _Z = np.eye(3)
 STRAIGHT_DEG = 5.0    # a limb bent less than this shows no plane ...
 PLANE_DEG = 20.0      # ... and one bent this much more shows it fully
 COLLAR_DEG = 30.0     # a collar turns at most this far (a shoulder shrug, not a dislocation)
+# A limb's hinge turns at most this far about the limb from its neutral (the parent's rest hinge):
+# a lifted knee or elbow pointing further round than a hip or shoulder turns is noise in the 3D,
+# and the limb is bent in the nearest plane a body allows instead (the ankle or wrist stays put).
+TWIST_DEG = {"leg": 60.0, "arm": 100.0}
+ANKLE_DEG = 80.0      # a foot turns at most this far from its rest direction on the shin
 
 
 @dataclass(frozen=True)
@@ -101,6 +106,21 @@ def hinge_axes(upper: np.ndarray, lower: np.ndarray, first: np.ndarray, referenc
         else:
             axis = w * normal[t] + (1 - w) * carried
         out[t] = previous = axis / max(np.linalg.norm(axis), 1e-9)
+    return out
+
+
+def limit_twist(hinge: np.ndarray, neutral: np.ndarray, along: np.ndarray, most: float) -> np.ndarray:
+    """Hinges (T x 3, square to ``along``) turned back about ``along`` to at most ``most`` degrees
+    from ``neutral`` (squared to ``along`` too)."""
+    base = _square(neutral, along)
+    angle = np.arctan2((np.cross(base, hinge) * along).sum(-1), (base * hinge).sum(-1))
+    limit = np.radians(most)
+    over = np.abs(angle) > limit
+    if not over.any():
+        return hinge
+    turned = np.clip(angle, -limit, limit)[:, None]
+    out = hinge.copy()
+    out[over] = (np.cos(turned) * base + np.sin(turned) * np.cross(along, base))[over]
     return out
 
 
@@ -168,6 +188,12 @@ def retarget(joints: np.ndarray, feet: np.ndarray | None = None) -> SmplMotion:
         hinge = hinge_axes(h[:, mid_t] - h[:, mid_t - 1], h[:, end_t] - h[:, mid_t], above[0],
                            above if leg else None)
         hinge = _square(hinge, unit(h[:, end_t] - pos[:, root]))
+        along = unit(h[:, end_t] - pos[:, root])
+        # The neutral hinge where the limb points now: the rest hinge carried by the smallest turn
+        # from the limb's rest direction (as its parent holds it) to its direction now.
+        rest_along = glob[:, PARENTS[root]] @ unit(o[middle] + o[end])
+        neutral = (_swing(rest_along, along) @ above[..., None])[..., 0]
+        hinge = limit_twist(hinge, neutral, along, TWIST_DEG["leg" if leg else "arm"])
         mid, tip = two_bone(pos[:, root], h[:, end_t], hinge, scale * np.linalg.norm(o[middle]),
                             scale * np.linalg.norm(o[end]))
         glob[:, root] = _aligning(o[middle], rest_hinge, mid - pos[:, root], hinge)
@@ -181,7 +207,9 @@ def retarget(joints: np.ndarray, feet: np.ndarray | None = None) -> SmplMotion:
         f = np.asarray(feet, np.float64)
         for ankle, target, heel, toe in ((7, 6, 0, 2), (8, 3, 1, 3)):
             ball = f[:, heel] + BALL_SHARE * (f[:, toe] - f[:, heel])
-            glob[:, ankle] = _aligning(o[ankle + 3], _X, ball - pos[:, ankle], glob[:, ankle - 3] @ _X)
+            rest_foot = glob[:, ankle - 3] @ unit(o[ankle + 3])  # where the foot points at rest, from the shin
+            aim = (_swing(rest_foot, ball - pos[:, ankle], ANKLE_DEG) @ rest_foot[..., None])[..., 0]
+            glob[:, ankle] = _aligning(o[ankle + 3], _X, aim, glob[:, ankle - 3] @ _X)
     for j, p in ((10, 7), (11, 8), (22, 20), (23, 21)):
         glob[:, j] = glob[:, p]
     local = glob.copy()
