@@ -763,18 +763,28 @@ def _export_smpl_bvh(args: argparse.Namespace) -> int:
     return 0
 
 
-def _export_aistpp(root: Path, args: argparse.Namespace) -> int:
+def _exported(root: Path, name: str, run, empty: str):
+    """What an export wrote, given the corpus's val share; None after one line saying why not."""
     from pipeline.core.params import load_params, stage_params
-    from pipeline.export.aistpp import export
 
     val_fraction = float(stage_params(load_params(root / "params.yaml"), "shard").get("val_fraction", 0.2))
     try:
-        sequences = export(root, args.out, val_fraction, args.fps)
+        written = run(val_fraction)
     except Dance3dError as exc:
         print(f"dance3d: {exc}", file=sys.stderr)
-        return 2
-    if not sequences:
-        print("dance3d export aistpp: no clip has SMPL motion and audio: run `dvc repro ground audio`", file=sys.stderr)
+        return None
+    if not written:
+        print(f"dance3d export {name}: {empty}", file=sys.stderr)
+        return None
+    return written
+
+
+def _export_aistpp(root: Path, args: argparse.Namespace) -> int:
+    from pipeline.export.aistpp import export
+
+    sequences = _exported(root, "aistpp", lambda val: export(root, args.out, val, args.fps),
+                          "no clip has SMPL motion and audio: run `dvc repro ground audio`")
+    if sequences is None:
         return 2
     frames = sum(len(s.poses) for s in sequences)
     print(f"wrote {args.out}: {len(sequences)} sequences ({sum(s.split == 'train' for s in sequences)} train), "
@@ -783,18 +793,11 @@ def _export_aistpp(root: Path, args: argparse.Namespace) -> int:
 
 
 def _export_edge(root: Path, args: argparse.Namespace) -> int:
-    from pipeline.core.params import load_params, stage_params
     from pipeline.export.edge import export
 
-    val_fraction = float(stage_params(load_params(root / "params.yaml"), "shard").get("val_fraction", 0.2))
-    try:
-        slices = export(root, args.out, val_fraction, args.length, args.stride)
-    except Dance3dError as exc:
-        print(f"dance3d: {exc}", file=sys.stderr)
-        return 2
-    if not slices:
-        print(f"dance3d export edge: no clip has SMPL motion and audio {args.length:g} s long: "
-              "run `dvc repro ground audio`", file=sys.stderr)
+    slices = _exported(root, "edge", lambda val: export(root, args.out, val, args.length, args.stride),
+                       f"no clip has SMPL motion and audio {args.length:g} s long: run `dvc repro ground audio`")
+    if slices is None:
         return 2
     train = sum(s.split == "train" for s in slices)
     print(f"wrote {args.out}: {len(slices)} slices of {args.length:g} s from {len({s.sequence for s in slices})} "
@@ -803,18 +806,12 @@ def _export_edge(root: Path, args: argparse.Namespace) -> int:
 
 
 def _export_gdance(root: Path, args: argparse.Namespace) -> int:
-    from pipeline.core.params import load_params, stage_params
     from pipeline.export.gdance import export
 
-    val_fraction = float(stage_params(load_params(root / "params.yaml"), "shard").get("val_fraction", 0.2))
-    try:
-        groups = export(root, args.out, val_fraction, args.min_seconds)
-    except Dance3dError as exc:
-        print(f"dance3d: {exc}", file=sys.stderr)
-        return 2
-    if not groups:
-        print(f"dance3d export gdance: no segment has two dancers in view together for {args.min_seconds:g} s "
-              "with SMPL motion and audio", file=sys.stderr)
+    groups = _exported(root, "gdance", lambda val: export(root, args.out, val, args.min_seconds),
+                       f"no segment has two dancers in view together for {args.min_seconds:g} s with SMPL motion "
+                       "and audio")
+    if groups is None:
         return 2
     seconds = sum(g.poses.shape[1] / g.fps for g in groups)
     print(f"wrote {args.out}: {len(groups)} group sequences, {seconds:.1f} s, "

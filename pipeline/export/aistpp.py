@@ -24,6 +24,7 @@ import csv
 import hashlib
 import pickle
 import shutil
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -82,22 +83,28 @@ def resample_flags(flags: np.ndarray, fps: float, to_fps: float, frames: int) ->
     return np.asarray(flags)[src]
 
 
-def corpus_sequences(root: Path, val_fraction: float, fps: float = AIST_FPS, genre: str = "DN") -> list[Sequence]:
-    """Every clip of the world files that has its SMPL motion and its segment's audio."""
+def retargeted_segments(root: Path) -> Iterator[tuple[Path, dict, float, list]]:
+    """(world file, its index row, its frame rate, its clips with SMPL motion) of every segment
+    that has audio: what the exports read."""
     from pipeline.core.storage import read_meta
-    from pipeline.motion.smpl.checks import foot_planted
     from pipeline.motion.world.worldfile import read_world
 
     segments = read_index(root / SEGMENTS)
-    out = []
     for world_file in item_files(root / WORLD):
         seg = segments.get(world_file.stem)
         if seg is None or not (root / AUDIO / f"{world_file.stem}.flac").exists():
             continue
-        rate = float(read_meta(world_file).get("fps", 24.0))
-        for clip in read_world(world_file):
-            if clip.smpl_poses is None or not np.isfinite(clip.smpl_poses).all():
-                continue
+        clips = [c for c in read_world(world_file) if c.smpl_poses is not None and np.isfinite(c.smpl_poses).all()]
+        yield world_file, seg, float(read_meta(world_file).get("fps", 24.0)), clips
+
+
+def corpus_sequences(root: Path, val_fraction: float, fps: float = AIST_FPS, genre: str = "DN") -> list[Sequence]:
+    """Every clip of the world files that has its SMPL motion and its segment's audio."""
+    from pipeline.motion.smpl.checks import foot_planted
+
+    out = []
+    for world_file, seg, rate, clips in retargeted_segments(root):
+        for clip in clips:
             poses, trans = resample(clip.smpl_poses, clip.smpl_trans, rate, fps)
             name, music = sequence_name(clip.clip_id, genre)
             planted = resample_flags(foot_planted(clip.contact, clip.planted), rate, fps, len(poses))

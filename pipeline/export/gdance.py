@@ -27,12 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.core.paths import AUDIO, AUDIO_FEATURES, SEGMENTS, WORLD
-from pipeline.core.storage import atomic_path, item_files, read_meta
+from pipeline.core.paths import AUDIO, AUDIO_FEATURES
+from pipeline.core.storage import atomic_path
 from pipeline.corpus.groups import MIN_DANCERS
 from pipeline.corpus.windows import split_of
-from pipeline.export.aistpp import resample, resample_flags, write_wav
-from pipeline.ingest.catalog import read_index
+from pipeline.export.aistpp import resample, resample_flags, retargeted_segments, write_wav
 
 GDANCE_FPS = 30.0
 
@@ -82,16 +81,9 @@ def corpus_groups(root: Path, val_fraction: float, min_seconds: float = 2.0,
                   fps: float = GDANCE_FPS) -> list[GroupSequence]:
     """Every group sequence of the world files whose dancers all have SMPL motion."""
     from pipeline.motion.smpl.checks import foot_planted
-    from pipeline.motion.world.worldfile import read_world
 
-    segments = read_index(root / SEGMENTS)
     out = []
-    for world_file in item_files(root / WORLD):
-        seg = segments.get(world_file.stem)
-        if seg is None or not (root / AUDIO / f"{world_file.stem}.flac").exists():
-            continue
-        rate = float(read_meta(world_file).get("fps", 24.0))
-        clips = [c for c in read_world(world_file) if c.smpl_poses is not None and np.isfinite(c.smpl_poses).all()]
+    for world_file, seg, rate, clips in retargeted_segments(root):
         for start, end, who in group_spans([c.frame for c in clips], int(np.ceil(min_seconds * rate))):
             dancers = [clips[i] for i in who]
             moved = []
