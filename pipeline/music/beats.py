@@ -32,6 +32,11 @@ RNN_FPS = 100      # their activation rate
 # Activations below this at the start and end are not decoded: without it the DBN carries beats on
 # into a fading last note (two extra beats after the music on 3 of 7 synthetic pieces).
 RNN_THRESHOLD = 0.05
+# The networks run on chunks of the signal with context either side: their spectrograms of a whole
+# segment take about 16 MB a second of audio (2.2 GB for a 133 s song), so a long one is cut.
+CHUNK_SECONDS = 30.0
+CONTEXT_SECONDS = 5.0
+RNN_HOP = RNN_SR // RNN_FPS  # samples per activation frame
 LOW_MEL_BANDS = 12  # of 128: up to about 250 Hz (kick drum and bass)
 DOWNBEAT_METHOD = "low-band accent over 3 or 4 beats per bar (heuristic)"
 TRACKERS = ("rnn", "librosa")
@@ -100,10 +105,26 @@ def downbeats_on_beats(beats: np.ndarray, bar_beats: np.ndarray, tolerance: floa
     return np.unique(beats[nearest[close]])
 
 
-def track_beats_rnn(y: np.ndarray, sr: int) -> Beats:
-    """madmom's RNN beats and bars (see the module's docstring)."""
+def activations(network, y: np.ndarray) -> np.ndarray:
+    """A network's activations (frames at RNN_FPS) of mono audio at RNN_SR, computed on chunks of
+    CHUNK_SECONDS with CONTEXT_SECONDS of signal either side, so memory stays bounded; frame k is
+    at k / RNN_FPS s, as on the whole signal."""
     from madmom.audio.signal import Signal
 
+    hop, context = int(CHUNK_SECONDS * RNN_SR), int(CONTEXT_SECONDS * RNN_SR)  # whole frames: hop 441
+    if len(y) <= hop + 2 * context:
+        return np.asarray(network(Signal(y, sample_rate=RNN_SR, num_channels=1)))
+    parts = []
+    for start in range(0, len(y), hop):
+        a, b = max(0, start - context), min(len(y), start + hop + context)
+        act = np.asarray(network(Signal(y[a:b], sample_rate=RNN_SR, num_channels=1)))
+        first = (start - a) // RNN_HOP
+        parts.append(act[first: first + int(np.ceil(min(hop, len(y) - start) / RNN_HOP))])
+    return np.concatenate(parts)
+
+
+def track_beats_rnn(y: np.ndarray, sr: int) -> Beats:
+    """madmom's RNN beats and bars (see the module's docstring)."""
     if sr != RNN_SR:
         y = librosa.resample(np.asarray(y, np.float32), orig_sr=sr, target_sr=RNN_SR)
     y = np.asarray(y, np.float32)
@@ -111,9 +132,8 @@ def track_beats_rnn(y: np.ndarray, sr: int) -> Beats:
         empty = np.zeros(0)
         return Beats(empty, 0.0, empty, 4, "rnn", "madmom DBN bar tracker")
     beat_rnn, beat_dbn, bar_rnn, bar_dbn = _rnn_processors()
-    signal = Signal(y, sample_rate=RNN_SR, num_channels=1)
-    times = np.asarray(beat_dbn(beat_rnn(signal)), float)
-    bars = np.asarray(bar_dbn(bar_rnn(signal)), float).reshape(-1, 2)
+    times = np.asarray(beat_dbn(activations(beat_rnn, y)), float)
+    bars = np.asarray(bar_dbn(activations(bar_rnn, y)), float).reshape(-1, 2)
     per_bar = int(bars[:, 1].max()) if len(bars) else 4
     downbeats = downbeats_on_beats(times, bars[bars[:, 1] == 1, 0])
     tempo = float(60.0 / np.median(np.diff(times))) if len(times) > 1 else 0.0

@@ -126,3 +126,19 @@ def test_real_music_smoke(media_dir: Path) -> None:
     expected = len(y) / sr * beats.tempo / 60
     assert 0.8 * expected <= len(beats.times) <= 1.1 * expected
     assert np.all(np.diff(beats.times) > 0) and set(beats.downbeats) <= set(beats.times)
+
+
+def test_the_rnn_runs_on_chunks_that_give_the_whole_signals_activations() -> None:
+    """Memory stays bounded on long segments: the networks see 30 s chunks with 5 s of context
+    either side, and the stitched activations are the whole signal's, frame for frame."""
+    from madmom.audio.signal import Signal
+
+    from pipeline.music.beats import RNN_HOP, RNN_SR, _rnn_processors, activations
+
+    piece = PIECES["tempo_change_100_to_132"]  # 41 s: two chunks
+    y = librosa.resample(piece.audio, orig_sr=SR, target_sr=RNN_SR)
+    network = _rnn_processors()[0]
+    whole = np.asarray(network(Signal(y, sample_rate=RNN_SR, num_channels=1)))
+    chunked = activations(network, y)
+    assert len(chunked) == len(whole) == int(np.ceil(len(y) / RNN_HOP))
+    assert np.corrcoef(whole, chunked)[0, 1] > 0.99 and np.abs(whole - chunked).max() < 0.15
