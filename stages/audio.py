@@ -48,7 +48,7 @@ def run(root: Path) -> None:
         out_audio, out_features = root / AUDIO / f"{seg_id}.flac", root / AUDIO_FEATURES / f"{seg_id}.parquet"
         job = AudioJob(SegmentVideo.from_index(root / RAW, seg), out_audio, out_features, opts, tuple(extra_sets),
                        params["fps"], params, inputs, fp, tracker)
-        items.append(WorkItem(seg_id, fp, (out_features, out_audio), job))
+        items.append(WorkItem(seg_id, fp, (out_features, out_audio), job, size=float(seg["end"] - seg["start"])))
     if silent:
         log.info("%d segments have no audio track and are left out downstream: %s", len(silent), ", ".join(silent))
     for old in (root / AUDIO).glob("*.wav") if (root / AUDIO).exists() else ():

@@ -45,7 +45,7 @@ def run(root: Path) -> None:
         out = root / POSE2D / f"{seg['segment_id']}.parquet"
         segment = SegmentInfo(seg["segment_id"], seg["fps"], int(seg["frames"]), seg["width"], seg["height"])
         job = Pose2dJob(SegmentVideo.from_index(root / RAW, seg), out, segment, opts, params, inputs, fp)
-        items.append(WorkItem(seg["segment_id"], fp, (out,), job))
+        items.append(WorkItem(seg["segment_id"], fp, (out,), job, size=float(seg["end"] - seg["start"])))
     report = run_item_stage("pose2d", items, pose_segment, out_dirs=[root / POSE2D], params=params,
                             setup=load_pose_models, setup_args=(files,), gpu=files.device != "cpu")
     for seg_id, r in sorted(report.done.items()):

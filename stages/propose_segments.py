@@ -44,7 +44,7 @@ def run(root: Path) -> None:
         out = root / SEGMENT_PROPOSALS / f"{row['video_id']}.parquet"
         fp = fingerprint(SCHEMA_VERSION, row["sha256"], model_hashes, params, rules, CODE)
         job = ProposeJob(row["video_id"], root / RAW / row["path"], out, opts, pose_opts, params, fp)
-        items.append(WorkItem(row["video_id"], fp, (out,), job))
+        items.append(WorkItem(row["video_id"], fp, (out,), job, size=float(row.get("duration") or 0.0)))
 
     def summary(report) -> None:
         path = write_summary(root / SEGMENT_PROPOSALS, item_files(root / SEGMENT_PROPOSALS))

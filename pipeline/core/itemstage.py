@@ -43,6 +43,7 @@ class WorkItem:
     outputs: tuple[Path, ...]  # the first is a Parquet file carrying the fingerprint in its metadata
     payload: Any              # what the worker function needs (a frozen dataclass: the job)
     where: str = ""           # where a user finds the item (file:line), prefixed to its failure message
+    size: float = 0.0         # how much work it is (e.g. seconds of video): the largest start first
 
 
 @dataclass
@@ -100,6 +101,8 @@ def run_item_stage(
         else:
             todo.append(item)
     log.info("%s: %d items, %d up to date, %d to do", stage, len(items), len(report.skipped), len(todo))
+    # Largest first: a long video started last would leave the other workers idle while it runs.
+    todo.sort(key=lambda item: -item.size)
     executor = str(params.get("executor", "local"))
     if executor not in ("local", "ray"):
         raise ValueError(f"{stage}: executor must be local or ray, not {executor!r}")

@@ -148,3 +148,20 @@ def test_a_light_stage_does_its_few_quick_items_itself_and_a_heavy_one_uses_work
     heavy = run_item_stage("heavy", items("heavy"), _pid, out_dirs=[tmp_path / "heavy"], params=params)
     assert set(light.done.values()) == {os.getpid()}
     assert os.getpid() not in set(heavy.done.values()) and len(heavy.done) == 3
+
+
+def _started_at(seconds: float) -> float:
+    start = time.time()
+    time.sleep(seconds)
+    return start
+
+
+def test_the_largest_items_start_first_so_no_worker_waits_on_a_long_one_started_last(tmp_path: Path) -> None:
+    """Three short videos and a long one on two workers: the long one starts at once."""
+    from pipeline.core.itemstage import WorkItem, run_item_stage
+
+    out = tmp_path / "out"
+    seconds = {"a": 0.2, "b": 0.2, "c": 1.0, "d": 0.2}
+    items = [WorkItem(i, "fp", (out / f"{i}.parquet",), s, size=s) for i, s in seconds.items()]
+    started = run_item_stage("demo", items, _started_at, out_dirs=[out], params={"workers": 2}).done
+    assert started["c"] <= min(started["a"], started["b"], started["d"]) + 0.05
