@@ -32,10 +32,10 @@ RNN_FPS = 100      # their activation rate
 # Activations below this at the start and end are not decoded: without it the DBN carries beats on
 # into a fading last note (two extra beats after the music on 3 of 7 synthetic pieces).
 RNN_THRESHOLD = 0.05
-# The networks run on chunks of the signal with context either side: their spectrograms of a whole
+# Long signals go through the networks in chunks with context either side: their spectrograms of a whole
 # segment take about 16 MB a second of audio (2.2 GB for a 133 s song), so a long one is cut.
-CHUNK_SECONDS = 30.0
-CONTEXT_SECONDS = 5.0
+CHUNK_SECONDS = 60.0
+CONTEXT_SECONDS = 10.0
 RNN_HOP = RNN_SR // RNN_FPS  # samples per activation frame
 LOW_MEL_BANDS = 12  # of 128: up to about 250 Hz (kick drum and bass)
 DOWNBEAT_METHOD = "low-band accent over 3 or 4 beats per bar (heuristic)"

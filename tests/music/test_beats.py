@@ -128,17 +128,21 @@ def test_real_music_smoke(media_dir: Path) -> None:
     assert np.all(np.diff(beats.times) > 0) and set(beats.downbeats) <= set(beats.times)
 
 
-def test_the_rnn_runs_on_chunks_that_give_the_whole_signals_activations() -> None:
-    """Memory stays bounded on long segments: the networks see 30 s chunks with 5 s of context
-    either side, and the stitched activations are the whole signal's, frame for frame."""
+def test_the_rnn_runs_on_chunks_that_track_as_well_as_the_whole_signal() -> None:
+    """Memory stays bounded on long segments: the networks see 60 s chunks with 10 s of context
+    either side; the stitched activations follow the whole signal's and the beats score as well."""
     from madmom.audio.signal import Signal
 
     from pipeline.music.beats import RNN_HOP, RNN_SR, _rnn_processors, activations
 
-    piece = PIECES["tempo_change_100_to_132"]  # 41 s: two chunks
-    y = librosa.resample(piece.audio, orig_sr=SR, target_sr=RNN_SR)
-    network = _rnn_processors()[0]
+    names = ("tempo_change_100_to_132", "swing_110", "waltz_90")
+    offsets = np.cumsum([0.0] + [len(PIECES[n].audio) / SR for n in names[:-1]])
+    truth = np.concatenate([PIECES[n].beats + t for n, t in zip(names, offsets)])
+    y = librosa.resample(np.concatenate([PIECES[n].audio for n in names]), orig_sr=SR, target_sr=RNN_SR)
+    network, decode = _rnn_processors()[:2]  # 100 s: two chunks
     whole = np.asarray(network(Signal(y, sample_rate=RNN_SR, num_channels=1)))
     chunked = activations(network, y)
     assert len(chunked) == len(whole) == int(np.ceil(len(y) / RNN_HOP))
-    assert np.corrcoef(whole, chunked)[0, 1] > 0.99 and np.abs(whole - chunked).max() < 0.15
+    assert np.corrcoef(whole, chunked)[0, 1] > 0.99
+    f_whole, f_chunked = (mir_eval.beat.f_measure(truth, decode(a)) for a in (whole, chunked))
+    assert f_chunked >= f_whole - 0.01 and f_chunked > 0.95
