@@ -132,7 +132,8 @@ def _parser() -> argparse.ArgumentParser:
     bvh.add_argument("out", type=Path, help="the .bvh file to write (with --all: a folder)")
     bvh.add_argument("--smpl", action="store_true",
                      help="MOTION is a world file (data/world): write the clip on the SMPL skeleton (its 24 joints by "
-                          "SMPL's names, rest offsets times smpl_scaling, T-pose rest, the world file's frame)")
+                          "SMPL's names, rest offsets times smpl_scaling, T-pose rest, the world file's frame); with "
+                          "--all every dancer of the segment, where they danced")
     bvh.add_argument("--all", action="store_true",
                      help="every clip of the file, one BVH per dancer (<clip_id>.bvh in the folder OUT), all in the "
                           "segment's one scene: import them together and the dancers stand where they danced")
@@ -749,17 +750,30 @@ def _export_smpl_bvh(args: argparse.Namespace) -> int:
     from pipeline.core.storage import read_meta
     from pipeline.motion.bvh_export import write_bvh
     from pipeline.motion.smpl.bvh import smpl_skeleton_motion
+    from pipeline.motion.world.worldfile import read_world
 
-    if args.all or args.clip_id is None:
-        print("dance3d export bvh --smpl: give WORLD CLIP_ID OUT.bvh", file=sys.stderr)
+    if args.all == (args.clip_id is not None):
+        print("dance3d export bvh --smpl: give WORLD CLIP_ID OUT.bvh, or WORLD --all OUT_FOLDER", file=sys.stderr)
         return 2
-    clip = _world_clip_of(args.motion, args.clip_id)
-    if clip is None:
-        return 2
-    scale = float(clip.facts["smpl_scaling"])
+    if args.all:  # every dancer of the segment, in its one scene
+        try:
+            clips = [c for c in read_world(args.motion) if c.smpl_poses is not None]
+        except Dance3dError as exc:
+            print(f"dance3d: {exc}", file=sys.stderr)
+            return 2
+        args.out.mkdir(parents=True, exist_ok=True)
+        outs = [(c, args.out / f"{c.clip_id}.bvh") for c in clips]
+    else:
+        clip = _world_clip_of(args.motion, args.clip_id)
+        if clip is None:
+            return 2
+        outs = [(clip, args.out)]
     fps = float(read_meta(args.motion).get("fps", 24.0))
-    write_bvh(args.out, smpl_skeleton_motion(clip.smpl_poses, clip.smpl_trans, scale), fps)
-    print(f"wrote {args.out}: {len(clip.smpl_poses)} frames at {fps:g} fps on the SMPL skeleton (scale {scale:.3f})")
+    for clip, out in outs:
+        scale = float(clip.facts["smpl_scaling"])
+        write_bvh(out, smpl_skeleton_motion(clip.smpl_poses, clip.smpl_trans, scale), fps)
+        print(f"wrote {out}: {len(clip.smpl_poses)} frames at {fps:g} fps on the SMPL skeleton (scale {scale:.3f}), "
+              f"from frame {int(clip.frame[0])} ({clip.time[0]:.2f} s)")
     return 0
 
 

@@ -159,6 +159,10 @@ def _draws_and_exports_the_smpl_skeleton(root: Path, tmp_path: Path) -> None:
         assert done.returncode == 0 and out.stat().st_size > 0, done.stderr[-2000:]
     bvh = read_bvh(tmp_path / "smpl.bvh")
     assert len(bvh.joints) == 24 and bvh.motion.shape[0] == len(clip.frame)
+    done = subprocess.run([sys.executable, "-m", "pipeline.cli", "export", "bvh", "--smpl", str(world), "--all",
+                           str(tmp_path / "smpl_all")], cwd=root, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert sorted(p.stem for p in (tmp_path / "smpl_all").glob("*.bvh")) == sorted(c.clip_id for c in read_world(world))
 
 
 def _exports_edge(root: Path, out: Path) -> None:
