@@ -83,18 +83,36 @@ def music_features(y: np.ndarray, beat_times: np.ndarray, start: float) -> np.nd
                           axis=1).astype(np.float32)
 
 
-def _load_audio(flac: Path, sr: int | None) -> tuple[np.ndarray, int]:
+@dataclass(frozen=True)
+class SegmentMusic:
+    """A segment's normalised audio, decoded once: as it is (for the wav slices), at FEATURE_SR
+    (for the music features), and its beats."""
+
+    audio: np.ndarray       # mono, at ``rate``
+    rate: int
+    low: np.ndarray         # mono, at FEATURE_SR
+    beat_times: np.ndarray  # seconds, segment clock
+
+    def features(self, begin: float, seconds: float) -> np.ndarray:
+        """EDGE's 35 music features of ``seconds`` from ``begin`` (segment clock), a row a frame."""
+        clip = self.low[int(round(begin * FEATURE_SR)):][: int(seconds * FEATURE_SR)]
+        return music_features(clip, self.beat_times, begin)[: int(round(seconds * EDGE_FPS))]
+
+
+def segment_music(root: Path, segment_id: str) -> SegmentMusic:
     import librosa
 
-    y, rate = librosa.load(str(flac), sr=sr, mono=True)
-    return y, int(rate)
+    from pipeline.music.audio import read_mono
+    from pipeline.music.featurefile import read_features
+
+    audio, rate = read_mono(root / AUDIO / f"{segment_id}.flac")
+    low = librosa.resample(audio, orig_sr=rate, target_sr=FEATURE_SR, res_type="soxr_hq")
+    return SegmentMusic(audio, rate, low, read_features(root / AUDIO_FEATURES / f"{segment_id}.parquet").beat_times)
 
 
 def export(root: Path, out: Path, val_fraction: float, length: float = 5.0, stride: float = 0.5) -> list[Slice]:
     """Write EDGE's prepared layout of the corpus under ``out``; the slices written."""
     import soundfile
-
-    from pipeline.music.featurefile import read_features
 
     sequences = corpus_sequences(root, val_fraction, AIST_FPS)
     for folder in FOLDERS.values():
@@ -105,15 +123,13 @@ def export(root: Path, out: Path, val_fraction: float, length: float = 5.0, stri
     for seq in sequences:
         by_segment.setdefault(seq.segment_id, []).append(seq)
     for segment_id, seqs in sorted(by_segment.items()):
-        flac = root / AUDIO / f"{segment_id}.flac"
-        music, rate = _load_audio(flac, None)
-        low, _ = _load_audio(flac, FEATURE_SR)
-        beat_times = read_features(root / AUDIO_FEATURES / f"{segment_id}.parquet").beat_times
+        music = segment_music(root, segment_id)
+        rate = music.rate
         for seq in seqs:
             motion = edge_features(seq.poses, seq.trans, seq.scaling, seq.planted)[::int(AIST_FPS / EDGE_FPS)]
             for i, first in enumerate(slice_starts(len(seq.poses), AIST_FPS, length, stride)):
                 begin = seq.start_time + first / AIST_FPS
-                piece = music[int(round(begin * rate)):][: int(length * rate)]
+                piece = music.audio[int(round(begin * rate)):][: int(length * rate)]
                 if len(piece) < int(length * rate):
                     break  # EDGE keeps as many motion slices as there are whole music slices
                 name, folder = f"{seq.name}_slice{i}", out / FOLDERS[seq.split]
@@ -123,8 +139,7 @@ def export(root: Path, out: Path, val_fraction: float, length: float = 5.0, stri
                     tmp.write_bytes(pickle.dumps(data, protocol=pickle.HIGHEST_PROTOCOL))
                 with atomic_path(folder / "wavs_sliced" / f"{name}.wav") as tmp:
                     soundfile.write(tmp, piece, rate, format="WAV")
-                clip = low[int(round(begin * FEATURE_SR)):][: int(length * FEATURE_SR)]
-                feats = music_features(clip, beat_times, begin)[: int(length * EDGE_FPS)]
+                feats = music.features(begin, length)
                 edge_first = first // int(AIST_FPS / EDGE_FPS)
                 for kind, array in (("baseline_feats", feats),
                                     ("edge_features", motion[edge_first: edge_first + int(length * EDGE_FPS)])):

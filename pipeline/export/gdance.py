@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.core.paths import AUDIO, AUDIO_FEATURES
+from pipeline.core.paths import AUDIO
 from pipeline.core.storage import atomic_path
 from pipeline.corpus.groups import MIN_DANCERS
 from pipeline.corpus.windows import split_of
@@ -107,13 +107,12 @@ def corpus_groups(root: Path, val_fraction: float, min_seconds: float = 2.0,
 
 def export(root: Path, out: Path, val_fraction: float, min_seconds: float = 2.0) -> list[GroupSequence]:
     """Write the AIOZ-GDANCE layout of the corpus's groups under ``out``; the sequences written."""
-    from pipeline.export.edge import FEATURE_SR, music_features
-    from pipeline.music.featurefile import read_features
+    from pipeline.export.edge import SegmentMusic, segment_music
 
     sequences = corpus_groups(root, val_fraction, min_seconds)
     for folder in ("motions_smpl", "musics", "baseline_feats"):
         (out / folder).mkdir(parents=True, exist_ok=True)
-    low: dict[str, np.ndarray] = {}
+    music: dict[str, SegmentMusic] = {}
     for seq in sequences:
         data = {"smpl_poses": seq.poses, "root_trans": seq.root_trans, "smpl_trans": seq.trans,
                 "smpl_scaling": seq.scaling, "contacts": seq.planted.astype(np.float32),
@@ -125,13 +124,9 @@ def export(root: Path, out: Path, val_fraction: float, min_seconds: float = 2.0)
         flac = root / AUDIO / f"{seq.segment_id}.flac"
         frames = seq.poses.shape[1]
         write_wav(out / "musics" / f"{seq.name}.wav", flac, seq.start_time, frames / seq.fps)
-        if seq.segment_id not in low:
-            import librosa
-
-            low[seq.segment_id] = librosa.load(str(flac), sr=FEATURE_SR, mono=True)[0]
-        beats = read_features(root / AUDIO_FEATURES / f"{seq.segment_id}.parquet").beat_times
-        clip = low[seq.segment_id][int(round(seq.start_time * FEATURE_SR)):][: int(frames / seq.fps * FEATURE_SR)]
-        feats = music_features(clip, beats, seq.start_time)[:frames]
+        if seq.segment_id not in music:
+            music[seq.segment_id] = segment_music(root, seq.segment_id)
+        feats = music[seq.segment_id].features(seq.start_time, frames / seq.fps)
         with atomic_path(out / "baseline_feats" / f"{seq.name}.npy") as tmp, open(tmp, "wb") as f:
             np.save(f, feats)
     train = sorted(s.name for s in sequences if s.split == "train")

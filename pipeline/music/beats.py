@@ -71,6 +71,11 @@ def describe(tracker: str) -> str:
             f"{DOWNBEAT_METHOD}; {LICENCES['librosa']}")
 
 
+def tempo_of(beats: np.ndarray) -> float:
+    """BPM of beat times: the median inter-beat interval (0 with fewer than two beats)."""
+    return float(60.0 / np.median(np.diff(beats))) if len(beats) > 1 else 0.0
+
+
 def track_beats(y: np.ndarray, sr: int, tracker: str = DEFAULT_TRACKER) -> Beats:
     """Beat and downbeat times (seconds) of mono audio ``y`` at sample rate ``sr``, by ``tracker``."""
     if tracker == "rnn":
@@ -136,8 +141,8 @@ def track_beats_rnn(y: np.ndarray, sr: int) -> Beats:
     bars = np.asarray(bar_dbn(activations(bar_rnn, y)), float).reshape(-1, 2)
     per_bar = int(bars[:, 1].max()) if len(bars) else 4
     downbeats = downbeats_on_beats(times, bars[bars[:, 1] == 1, 0])
-    tempo = float(60.0 / np.median(np.diff(times))) if len(times) > 1 else 0.0
-    return Beats(times, tempo, downbeats, per_bar if per_bar in (3, 4) else 4, "rnn", "madmom DBN bar tracker")
+    per_bar = per_bar if per_bar in (3, 4) else 4
+    return Beats(times, tempo_of(times), downbeats, per_bar, "rnn", "madmom DBN bar tracker")
 
 
 def _bar_start(times: np.ndarray, low: np.ndarray, sr: int, hop: int) -> tuple[int, int]:

@@ -18,7 +18,7 @@ import mir_eval
 import numpy as np
 
 from pipeline.core.errors import InputError
-from pipeline.music.beats import RNN_SR, TRACKERS, describe, track_beats, track_beats_motion_rate
+from pipeline.music.beats import RNN_SR, TRACKERS, describe, tempo_of, track_beats, track_beats_motion_rate
 
 _SPLIT = re.compile(r"[\s,;]+")
 PROTOCOL = ("mir_eval.beat.evaluate (MIREX): beats before 5 s ignored in both lists, F-measure window +-70 ms, "
@@ -50,10 +50,6 @@ def read_beat_annotations(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
         raise InputError(path, "needs at least two beats")
     bars = None if any(p is None for p in positions) else np.asarray(positions)
     return np.asarray(times), bars
-
-
-def tempo_of(beats: np.ndarray) -> float:
-    return float(60.0 / np.median(np.diff(beats))) if len(beats) > 1 else 0.0
 
 
 def score(reference: np.ndarray, estimated: np.ndarray, ref_downbeats: np.ndarray | None = None,

@@ -24,6 +24,8 @@ from dataclasses import dataclass
 import mir_eval
 import numpy as np
 
+from pipeline.music.beats import tempo_of
+
 TEMPO_RANGE = (40.0, 240.0)  # BPM a level may have: a slow half time to fast footwork
 MARGIN = 0.1
 MIN_FIT = 0.4  # below this F-measure no level describes the dance (speech, free movement): keep the tracked one
@@ -37,10 +39,6 @@ class BeatLevel:
     name: str                    # "tracked", "half" or "double"
     scores: dict[str, float]     # each candidate level's F-measure against the motion beats (NaN: not scored)
     reason: str
-
-
-def tempo_of(beats: np.ndarray) -> float:
-    return float(60.0 / np.median(np.diff(beats))) if len(beats) > 1 else 0.0
 
 
 def candidate_levels(beats: np.ndarray, downbeats: np.ndarray, beats_per_bar: int) -> dict[str, np.ndarray]:
