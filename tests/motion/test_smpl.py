@@ -7,6 +7,7 @@ from scipy.spatial.transform import Rotation
 
 from pipeline.motion.smpl import checks
 from pipeline.motion.smpl.kinematics import forward, from_axis_angle, to_6d_rows, to_axis_angle
+from pipeline.motion.smpl.proportions import own_offsets
 from pipeline.motion.smpl.retarget import hinge_axes, retarget, two_bone
 from pipeline.motion.smpl.skeleton import JOINTS, PARENTS, REST_OFFSETS, J, leg_length, rest_positions
 
@@ -128,6 +129,26 @@ def test_a_knee_turned_further_than_a_hip_turns_is_bent_in_the_nearest_plane_the
     assert np.linalg.norm(motion.joints[:, J["left_knee"]] - truth[:, J["left_knee"]], axis=-1).min() > 0.03
 
 
+def test_proportions_other_than_smpls_are_told_apart_from_the_inverse_kinematics():
+    """A dancer with forearms and shins 15 % longer than SMPL's, and shoulders 4 cm wider: on
+    SMPL's offsets the elbows and knees miss by about the difference (no rotation can help); on the
+    clip's own proportions (own_offsets) the same rules find them again."""
+    local, trans, scale = smpl_dance()
+    offsets = REST_OFFSETS.copy()
+    offsets[[7, 8, 20, 21]] *= 1.15
+    offsets[[16, 17]] *= 1.2
+    truth = forward(local, trans, scale, offsets)
+    joints = as_h36m(truth)
+    own = own_offsets(joints)
+    assert np.linalg.norm(own[[7, 8, 20, 21]], axis=-1) == pytest.approx(
+        scale * np.linalg.norm(offsets[[7, 8, 20, 21]], axis=-1), rel=1e-6)
+    on_smpl = checks.joint_errors(retarget(joints), joints)
+    on_own = checks.joint_errors(retarget(joints, offsets=own), joints)
+    for name in ("left_knee", "right_knee", "left_elbow", "right_elbow"):
+        assert np.median(on_smpl[name]) > 0.015
+        assert np.median(on_own[name]) < 0.01
+
+
 def test_feet_point_at_the_ball_of_the_foot():
     local, trans, scale = smpl_dance(24)
     truth = forward(local, trans, scale)
@@ -176,3 +197,18 @@ def test_the_smpl_bvh_reads_back_as_the_same_joints(tmp_path):
     positions, _, _ = forward_kinematics(bvh, "replace")
     back = positions[:, [bvh.index(name) for name in JOINTS]]
     assert np.abs(back - motion.joints).max() < 1e-5  # the file's six decimals
+
+
+def test_eval_smpl_reports_the_error_on_smpls_proportions_beside_the_clips_own():
+    from pipeline.motion.smpl.evaluate import Clip, evaluate, format_report
+
+    local, trans, scale = smpl_dance()
+    offsets = REST_OFFSETS.copy()
+    offsets[[20, 21]] *= 1.2  # long forearms
+    joints = as_h36m(forward(local, trans, scale, offsets))
+    result = evaluate([Clip("made", "long_forearms", joints, None, None, 24.0)])
+    on_smpl, on_own = result["all"]["error"], result["all"]["error_own_proportions"]
+    assert on_smpl["left_elbow"]["median_mm"] > 20 > on_own["left_elbow"]["median_mm"]
+    assert on_own["all"]["p95_mm"] < on_smpl["all"]["p95_mm"]
+    report = format_report(result)
+    assert "own prop." in report and "long_forearms" not in report  # per source, not per clip

@@ -14,6 +14,10 @@ offsets times the clip's scale) is compared with the joints it came from:
 
 Baseline beside the figures: the SMPL rest skeleton placed at each frame's hips with no rotation
 (what a trainer would get from an exporter that wrote no poses): its mapped-point error.
+
+Beside them, the same rules on the SMPL tree given the clip's own proportions
+(``proportions.own_offsets``): the error of the inverse kinematics alone. What the SMPL figures add
+to it is the neutral body's proportions, which no rotations can remove.
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ import numpy as np
 
 from pipeline.motion.smpl import checks
 from pipeline.motion.smpl.kinematics import forward
+from pipeline.motion.smpl.proportions import own_offsets
 from pipeline.motion.smpl.retarget import SmplMotion, retarget
 
 LIMBS = ("knees", "ankles", "feet", "shoulders", "elbows", "wrists")
@@ -83,8 +88,10 @@ def score_clip(clip: Clip) -> dict:
                                    clip.joints, clip.feet)
     before = checks.world_foot_points(clip.joints, clip.feet)
     ranges = checks.joint_ranges(smpl)
+    own = checks.joint_errors(retarget(clip.joints, clip.feet, own_offsets(clip.joints, clip.feet)), clip.joints,
+                              clip.feet)
     row = {"source": clip.source, "clip": clip.name, "frames": len(clip.joints), "scale": round(smpl.scale, 4),
-           "errors": errors, "baseline": baseline,
+           "errors": errors, "baseline": baseline, "own_proportions": own,
            "sliding_before": checks.sliding(before, clip.standing, clip.fps) if before is not None else float("nan"),
            "sliding_after": checks.sliding(checks.foot_points(smpl), clip.standing, clip.fps)
            if before is not None else float("nan"),
@@ -120,6 +127,7 @@ def summarise(rows: list[dict]) -> dict:
 
     return {"clips": len(rows), "frames": frames, "error": _pooled(rows, "errors"),
             "baseline_rest_pose": _pooled(rows, "baseline")["all"],
+            "error_own_proportions": _pooled(rows, "own_proportions"),
             "sliding_before_mm": mean("sliding_before"), "sliding_after_mm": mean("sliding_after"),
             "frames_outside_range": outside, "scale_median": round(float(np.median([r["scale"] for r in rows])), 4)}
 
@@ -143,20 +151,25 @@ def format_report(result: dict) -> str:
     """A table a person reads: one line per source, then the pooled per-joint figures."""
     if not result.get("clips", 1):
         return "no clips to measure"
-    lines = [f"{'source':28s} {'clips':>5s} {'median mm':>9s} {'p95 mm':>7s} {'rest mm':>7s} "
+    lines = [f"{'source':28s} {'clips':>5s} {'median mm':>9s} {'p95 mm':>7s} {'rest mm':>7s} {'own prop. mm':>12s} "
              f"{'slide before':>12s} {'after':>6s} {'frames outside range':>20s}"]
     for source, s in result.items():
         if source == "per_clip":
             continue
-        error = s["error"]["all"]
+        error, own = s["error"]["all"], s["error_own_proportions"]["all"]
         lines.append(f"{source:28s} {s['clips']:5d} {error['median_mm']:9.1f} {error['p95_mm']:7.1f} "
-                     f"{s['baseline_rest_pose']['median_mm']:7.1f} {s['sliding_before_mm']:12.3f} "
+                     f"{s['baseline_rest_pose']['median_mm']:7.1f} {own['median_mm']:5.1f} /{own['p95_mm']:5.1f} "
+                     f"{s['sliding_before_mm']:12.3f} "
                      f"{s['sliding_after_mm']:6.3f} {sum(s['frames_outside_range'].values()):>8d} of {s['frames']}")
     lines.append("")
-    lines.append("per point (all clips): median / p95 mm")
+    lines.append("per point (all clips): median / p95 mm on SMPL's proportions, and on the clip's own")
+    own = result["all"]["error_own_proportions"]
     for name, e in result["all"]["error"].items():
         if name != "all":
-            lines.append(f"  {name:16s} {e['median_mm']:7.1f} {e['p95_mm']:7.1f}")
+            lines.append(f"  {name:16s} {e['median_mm']:7.1f} {e['p95_mm']:7.1f}    "
+                         f"{own[name]['median_mm']:7.1f} {own[name]['p95_mm']:7.1f}")
+    lines.append("(own proportions: the SMPL tree with the clip's bone lengths, proportions.own_offsets: the inverse "
+                 "kinematics' own error; the rest is SMPL's neutral proportions, which every trainer poses)")
     if result["all"]["frames_outside_range"]:
         lines.append("frames outside range: " + ", ".join(f"{k} {v}" for k, v in
                                                           result["all"]["frames_outside_range"].items()))

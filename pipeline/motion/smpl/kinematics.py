@@ -17,13 +17,14 @@ def global_rotations(local: np.ndarray) -> np.ndarray:
     return out
 
 
-def forward(local: np.ndarray, trans: np.ndarray, scale: float = 1.0) -> np.ndarray:
+def forward(local: np.ndarray, trans: np.ndarray, scale: float = 1.0, offsets: np.ndarray = REST_OFFSETS
+            ) -> np.ndarray:
     """T x 24 x 3 joint positions: local rotations (T x 24 x 3 x 3), the pelvis path (T x 3) and the
-    skeleton's scale (``smpl_scaling``: the rest offsets times it)."""
+    skeleton's scale (``smpl_scaling``: the rest offsets times it; other ``offsets`` only to measure)."""
     glob = global_rotations(local)
     out = np.empty(local.shape[:2] + (3,))
     for j, p in enumerate(PARENTS):
-        out[:, j] = trans if p < 0 else out[:, p] + glob[:, p] @ (scale * REST_OFFSETS[j])
+        out[:, j] = trans if p < 0 else out[:, p] + glob[:, p] @ (scale * offsets[j])
     return out
 
 

@@ -138,15 +138,17 @@ def two_bone(root: np.ndarray, end: np.ndarray, hinge: np.ndarray, upper: float,
     return middle, root + reach * along
 
 
-def retarget(joints: np.ndarray, feet: np.ndarray | None = None) -> SmplMotion:
+def retarget(joints: np.ndarray, feet: np.ndarray | None = None, offsets: np.ndarray = REST_OFFSETS
+             ) -> SmplMotion:
     """SMPL rotations, root path and scale for world joints (T x 17 x 3, H36M-17, y up) and, when
-    known, the heels and toe tips (T x 4 x 3: left heel, right heel, left toe, right toe)."""
+    known, the heels and toe tips (T x 4 x 3: left heel, right heel, left toe, right toe).
+    ``offsets``: the tree's rest offsets (SMPL's; others only to measure, ``proportions``)."""
     h = np.asarray(joints, np.float64)
     frames = len(h)
-    o = REST_OFFSETS
+    o = offsets
     thigh = np.median(np.linalg.norm(h[:, [5, 2]] - h[:, [4, 1]], axis=-1))
     shin = np.median(np.linalg.norm(h[:, [6, 3]] - h[:, [5, 2]], axis=-1))
-    scale = float((thigh + shin) / leg_length())
+    scale = float((thigh + shin) / leg_length(offsets=o))
     glob = np.broadcast_to(np.eye(3), (frames, 24, 3, 3)).copy()
     pos = np.zeros((frames, 24, 3))
 
@@ -216,7 +218,7 @@ def retarget(joints: np.ndarray, feet: np.ndarray | None = None) -> SmplMotion:
     for j, p in enumerate(PARENTS):
         if p >= 0:
             local[:, j] = np.swapaxes(glob[:, p], -1, -2) @ glob[:, j]
-    return SmplMotion(local, trans, scale, forward(local, trans, scale))
+    return SmplMotion(local, trans, scale, forward(local, trans, scale, o))
 
 
 def _swing(have: np.ndarray, want: np.ndarray, most: float = 180.0) -> np.ndarray:

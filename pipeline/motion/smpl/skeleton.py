@@ -66,7 +66,7 @@ def rest_positions(scale: float = 1.0) -> np.ndarray:
     return out
 
 
-def leg_length(scale: float = 1.0) -> float:
+def leg_length(scale: float = 1.0, offsets: np.ndarray = REST_OFFSETS) -> float:
     """Thigh plus shin of the rest skeleton (left and right averaged), metres."""
-    return scale * float(np.mean([np.linalg.norm(REST_OFFSETS[J[f"{s}_knee"]]) +
-                                  np.linalg.norm(REST_OFFSETS[J[f"{s}_ankle"]]) for s in ("left", "right")]))
+    return scale * float(np.mean([np.linalg.norm(offsets[J[f"{s}_knee"]]) +
+                                  np.linalg.norm(offsets[J[f"{s}_ankle"]]) for s in ("left", "right")]))
