@@ -11,24 +11,26 @@ import pipeline.pose.keyframes
 import pipeline.pose.models.detector
 import pipeline.pose.models.normalize
 import pipeline.pose.models.pose
+import pipeline.pose.parts
 import pipeline.pose.pose2d
 import pipeline.pose.pose2dfile
-from pipeline.core.itemstage import WorkItem, run_item_stage
+from pipeline.core.itemstage import WorkItem, is_up_to_date, run_item_stage
 from pipeline.core.params import load_params, stage_params
 from pipeline.core.paths import POSE2D, RAW, SEGMENTS
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint
 from pipeline.ingest.catalog import read_index
 from pipeline.ingest.segmentvideo import SegmentVideo
+from pipeline.pose.keyframes import keyframe_step
 from pipeline.pose.models.session import describe
+from pipeline.pose.parts import join_segment, part_files, part_items, plan_parts
 from pipeline.pose.pose2d import Pose2dJob, Pose2dOptions, load_pose_models, model_files, pose_segment
 from pipeline.pose.pose2dfile import SCHEMA_VERSION, SegmentInfo
 
 log = logging.getLogger("dance3d.pose2d")
 CODE = code_fingerprint(pipeline.pose.pose2d, pipeline.pose.pose2dfile, pipeline.pose.models.detector,
                         pipeline.pose.models.pose, pipeline.pose.models.normalize, pipeline.pose.keyframes,
-                        pipeline.ingest.media,
-                        pipeline.ingest.segmentvideo)
+                        pipeline.pose.parts, pipeline.ingest.media, pipeline.ingest.segmentvideo)
 
 
 def run(root: Path) -> None:
@@ -38,18 +40,33 @@ def run(root: Path) -> None:
     log.info("models run on %s (pose2d.device: %s)", describe(files.device, files.threads), files.device)
     # Where the models run is not what they compute: a segment done on a GPU is not redone on a CPU.
     computed = {k: v for k, v in params.items() if k != "device"}
-    items = []
+    # With several workers a long segment is posed in parts (pipeline/pose/parts.py), joined below.
+    part_seconds = float(params.get("part_seconds", 0.0)) if int(params.get("workers", 1)) > 1 else 0.0
+    items, split = [], []
     for seg in read_index(root / SEGMENTS).values():
         inputs = {"segment": seg["fingerprint"], **model_hashes}
         fp = fingerprint(SCHEMA_VERSION, inputs, computed, CODE)
         out = root / POSE2D / f"{seg['segment_id']}.parquet"
         segment = SegmentInfo(seg["segment_id"], seg["fps"], int(seg["frames"]), seg["width"], seg["height"])
         job = Pose2dJob(SegmentVideo.from_index(root / RAW, seg), out, segment, opts, params, inputs, fp)
-        items.append(WorkItem(seg["segment_id"], fp, (out,), job, size=float(seg["end"] - seg["start"])))
+        whole = WorkItem(seg["segment_id"], fp, (out,), job, size=float(seg["end"] - seg["start"]))
+        spans = plan_parts(segment.frames, segment.fps, keyframe_step(segment.fps, opts.fps), part_seconds)
+        if len(spans) == 1 or is_up_to_date(whole):
+            items.append(whole)
+        else:
+            split.append((whole, part_items(whole, spans)))
+            items += split[-1][1]
+    planned = {p.outputs[0] for _, parts in split for p in parts}
+    for stale in set(part_files(root / POSE2D)) - planned:
+        stale.unlink()
     report = run_item_stage("pose2d", items, pose_segment, out_dirs=[root / POSE2D], params=params,
                             setup=load_pose_models, setup_args=(files,), gpu=files.device != "cpu")
+    for whole, parts in split:
+        joined = join_segment(whole, parts)
+        if joined is not None:
+            report.done[whole.item_id] = joined
     for seg_id, r in sorted(report.done.items()):
-        if r["frames_with_people"] == 0:
+        if "~" not in seg_id and r["frames_with_people"] == 0:
             log.warning("%s: no people found in any of its %d frames", seg_id, r["frames"])
 
 

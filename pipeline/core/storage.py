@@ -17,7 +17,7 @@ import pyarrow.parquet as pq
 META_KEY = b"dance3d"
 # How a stage runs (not what it computes): never recorded in outputs nor in fingerprints, so
 # switching executor or worker count redoes nothing and gives byte-identical files.
-EXECUTION_KEYS = frozenset({"workers", "executor", "ray", "max_failure_ratio"})
+EXECUTION_KEYS = frozenset({"workers", "executor", "ray", "max_failure_ratio", "part_seconds"})  # how, not what
 
 
 def _without_execution(value: Any) -> Any:

@@ -236,25 +236,37 @@ def carried_boxes(keypoints: np.ndarray, width: int, height: int, min_score: flo
     return boxes.astype(np.float32)
 
 
-def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opts: Pose2dOptions
-                     ) -> Iterator[FramePoses]:
-    """Yield the poses of every frame of ``video`` (a segment view or a video file), in order.
+def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opts: Pose2dOptions,
+                     span: tuple[int, int] | None = None) -> Iterator[FramePoses]:
+    """Yield the poses of every frame of ``video`` (a segment view or a video file), in order;
+    ``span``: only a segment view's frames first to end - 1 (a part, ``parts.plan_parts``).
 
-    The models pose every ``keyframe_step``-th frame (and a segment's last); the frames between
-    are decoded but not converted, and come out interpolated once the next keyframe is posed, or
-    posed after all where the two keyframes' people differ (``pose_changes``).
+    The models pose every ``keyframe_step``-th frame (and a segment's or a part's last); the frames
+    between are decoded but not converted, and come out interpolated once the next keyframe is
+    posed, or posed after all where the two keyframes' people differ (``pose_changes``).
     """
     stop = threading.Event()
     every = max(1, int(opts.det_every))
     step = keyframe_step(fps, opts.fps)
-    last = video.frames - 1 if isinstance(video, SegmentVideo) else -1
+    first, end = span if span is not None else (0, video.frames if isinstance(video, SegmentVideo) else 0)
+    last = end - 1 if isinstance(video, SegmentVideo) else -1
 
     def posed(index: int) -> bool:
         return index % step == 0 or index == last
 
+    def frames() -> Iterator[Frame]:
+        if span is None:
+            yield from frames_of(video, keep=posed if step > 1 else None)
+            return
+        assert isinstance(video, SegmentVideo), "a span is a segment view's"
+        for frame in video.iter_frames(keep=posed if step > 1 else None, first=first):
+            yield frame
+            if frame.index >= last:
+                return
+
     def decoded() -> Iterator[tuple | Frame]:
         keyframes = 0
-        for frame in frames_of(video, keep=posed if step > 1 else None):
+        for frame in frames():
             number = int(round(frame.time * fps))
             if frame.image is None:  # between keyframes: passed on unconverted
                 yield dataclasses.replace(frame, index=number)
@@ -489,11 +501,12 @@ class Pose2dJob:
     params: dict
     inputs: dict
     fingerprint: str
+    span: tuple[int, int] | None = None  # a part's frames (parts.plan_parts); None: the whole segment
 
 
 def pose_segment(models: PoseModels, job: Pose2dJob) -> dict:
     poses, frames = collect_poses(estimate_segment(job.video, job.segment.fps, models.detector, models.pose,
-                                                   job.opts))
+                                                   job.opts, job.span))
     segment = SegmentInfo(job.segment.segment_id, job.segment.fps, frames, job.segment.width, job.segment.height)
     write_pose2d(job.out, poses, segment, fingerprint=job.fingerprint, params=job.params, inputs=job.inputs)
     return {"frames": frames, "detections": len(poses), "frames_with_people": len(np.unique(poses.frame))}

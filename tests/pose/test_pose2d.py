@@ -135,6 +135,28 @@ def test_corrupt_packets_in_the_middle_are_skipped(project: Path, media_dir: Pat
     assert len(set(poses.frame)) >= 0.8 * 120
 
 
+def test_a_long_segment_is_posed_in_parts_by_both_workers_and_joined_as_one_pass(
+        project: Path, media_dir: Path, models_dir: Path, monkeypatch, caplog) -> None:
+    monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
+    write_sources(project, [("solo", media_dir / "videos/dance_solo_384x496_30fps.mp4")])
+    (project / "annotations/segments.csv").write_text("video_id,start,end\nsolo,0,4\n")
+    out = project / "data/pose2d/solo_000.parquet"
+    set_params(project, "pose2d", workers=2, part_seconds=0)
+    run_stages(project, "download", "trim", "pose2d")
+    one = read_pose2d(out)
+    out.unlink()
+    set_params(project, "pose2d", part_seconds=1)  # four parts of about a second
+    with caplog.at_level("INFO"):
+        run_stages(project, "pose2d")
+    assert "pose2d: 4 items, 0 up to date, 4 to do" in caplog.text
+    joined = read_pose2d(out)
+    assert joined.fingerprint == one.fingerprint and joined.segment == one.segment
+    assert np.array_equal(joined.poses.frame, one.poses.frame)
+    assert np.array_equal(joined.poses.keypoints, one.poses.keypoints)
+    assert np.array_equal(joined.poses.interpolated_mask(), one.poses.interpolated_mask())
+    assert sorted(p.name for p in (project / "data/pose2d").iterdir()) == ["_failures.parquet", "solo_000.parquet"]
+
+
 def test_missing_model_stops_the_stage_with_one_line(project: Path, tmp_path: Path, models_dir: Path,
                                                       monkeypatch) -> None:
     only_detector = tmp_path / "only-detector"
