@@ -296,7 +296,9 @@ def _parser() -> argparse.ArgumentParser:
                     "kinematics (SMPL rest offsets x the clip's scale) with the joints: per mapped point median and "
                     "95th percentile (mm), foot sliding of ankles and balls of the feet where they stand before and "
                     "after (mm a frame at 30 fps), frames with a joint outside its human range; beside it the "
-                    "unrotated rest skeleton at the hips. Protocol: pipeline/motion/smpl/evaluate.py.")
+                    "unrotated rest skeleton at the hips, and the error on the SMPL tree given the clip's own bone "
+                    "lengths (the inverse kinematics alone: the rest is SMPL's neutral proportions). Protocol: "
+                    "pipeline/motion/smpl/evaluate.py.")
     smpl.add_argument("--mocap", type=Path, default=None, help="a motion-capture folder instead of data/world")
     smpl.add_argument("--seconds", type=float, default=0.0, help="with --mocap, the first seconds of each (0: all)")
     smpl.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
