@@ -61,3 +61,38 @@ def test_a_segment_posed_in_parts_gives_the_poses_of_one_pass(dance_clip, defaul
     joined = join_parts(paths, spans)
     for name in ("frame", "person", "box", "keypoints", "feet", "detected", "interpolated"):
         assert np.array_equal(getattr(joined, name), np.asarray(getattr(one, name), getattr(joined, name).dtype)), name
+
+
+def test_a_segment_is_joined_only_when_every_part_is_done_and_a_done_part_is_kept_until_then(tmp_path):
+    from fractions import Fraction
+
+    from pipeline.core.itemstage import WorkItem
+    from pipeline.ingest.segmentvideo import SegmentVideo
+    from pipeline.pose.parts import join_segment, part_items
+    from pipeline.pose.pose2d import Pose2dJob, Pose2dOptions
+    from pipeline.pose.pose2dfile import read_pose2d
+
+    out = tmp_path / "seg.parquet"
+    segment = SegmentInfo("seg", 25.0, 20, 64, 48)
+    job = Pose2dJob(SegmentVideo(tmp_path / "raw.mp4", 0.0, Fraction(25), 20, 64, 48), out, segment,
+                    Pose2dOptions(), {}, {}, "fp-whole")
+    whole = WorkItem("seg", "fp-whole", (out,), job, size=0.8)
+    parts = part_items(whole, [(0, 7), (6, 13), (12, 20)])
+    assert [p.item_id for p in parts] == ["seg~0", "seg~1", "seg~2"]
+    assert len({p.fingerprint for p in parts}) == 3 and [p.size for p in parts] == [0.28, 0.28, 0.32]
+
+    def done(k: int) -> None:  # what pose_segment writes for a part
+        a, b = parts[k].payload.span
+        write_pose2d(parts[k].outputs[0], fake_poses(range(a, b), float(k)), SegmentInfo("seg", 25.0, b - a, 64, 48),
+                     fingerprint=parts[k].fingerprint, params={}, inputs={})
+
+    done(0)
+    done(2)  # part 1 failed
+    assert join_segment(whole, parts) is None
+    assert not out.exists() and parts[0].outputs[0].exists() and parts[2].outputs[0].exists()
+    done(1)  # the retry
+    assert join_segment(whole, parts) == {"frames": 20, "detections": 20, "frames_with_people": 20}
+    joined = read_pose2d(out)
+    assert joined.fingerprint == "fp-whole" and joined.segment == segment
+    assert joined.poses.frame.tolist() == list(range(20))
+    assert not any(p.outputs[0].exists() for p in parts)
