@@ -125,10 +125,12 @@ def find_people(image: np.ndarray, dets: Detections, pose, opts: Pose2dOptions) 
         weak = weak[np.argsort(-dets.scores[weak], kind="stable")][: opts.top_k]
     else:
         weak = weak[:0]
+    body_model = pose.body if isinstance(pose, BodyAndFeet) else pose  # the feet only for the people kept
+    batch: PoseBatch = body_model.estimate(image, sure.boxes)
+    weak, weak_batch = _confirm_largest_first(image, dets, weak, sure, batch, body_model, opts)
+    batch = _joined(batch, weak_batch)
     boxes = np.concatenate([sure.boxes, dets.boxes[weak]]).reshape(-1, 4)
     scores = np.concatenate([sure.scores, dets.scores[weak]])
-    body_model = pose.body if isinstance(pose, BodyAndFeet) else pose  # the feet only for the people kept
-    batch: PoseBatch = body_model.estimate(image, boxes)
     joints = (batch.keypoints[:, :, 2] >= opts.confirm_joint_score).sum(1)
     is_sure = (np.arange(len(boxes)) < len(sure)) & (joints >= opts.min_joints)
     # A weak box lying mostly inside a sure one is a part of that person (a lap, a torso), not another.
@@ -136,13 +138,52 @@ def find_people(image: np.ndarray, dets: Detections, pose, opts: Pose2dOptions) 
     tall = boxes[:, 3] - boxes[:, 1] >= opts.confirm_min_height
     confirmed = (np.arange(len(boxes)) >= len(sure)) & (joints >= opts.confirm_joints) & tall & ~inside
     keep = np.flatnonzero(is_sure | confirmed)
-    area = (boxes[keep, 2] - boxes[keep, 0]) * (boxes[keep, 3] - boxes[keep, 1])
-    keep = keep[np.lexsort((-scores[keep], -area))][: opts.top_k]
+    keep = keep[np.lexsort((-scores[keep], -_areas(boxes[keep])))][: opts.top_k]
     people = Detections(boxes[keep], scores[keep])
     if isinstance(pose, BodyAndFeet):
         return people, pose.complete(image, people.boxes, PoseBatch.body_only(batch.keypoints[keep]))
     world = batch.world[keep] if batch.world is not None else None
     return people, PoseBatch(batch.keypoints[keep], batch.feet[keep], world)
+
+
+def _confirm_largest_first(image: np.ndarray, dets: Detections, weak: np.ndarray, sure: Detections,
+                           sure_batch: PoseBatch, body_model, opts: Pose2dOptions) -> tuple[np.ndarray, PoseBatch]:
+    """The weak candidates worth a pose (indices into ``dets``) and their poses, largest first.
+
+    Only the top_k largest people are kept, so once top_k people are known (sure ones with
+    ``min_joints``, weak ones confirmed), a candidate no larger than the top_k-th of them cannot be
+    kept (ties go to the surer box): it and every smaller one are not posed (a crowd's bystanders).
+    """
+    weak = weak[np.argsort(-_areas(dets.boxes[weak]), kind="stable")]
+    held = sure.boxes[(sure_batch.keypoints[:, :, 2] >= opts.confirm_joint_score).sum(1) >= opts.min_joints]
+    people = list(_areas(held))  # the areas of the people known so far
+    posed: list[PoseBatch] = []
+    for k, i in enumerate(weak):
+        area = float(_areas(dets.boxes[i:i + 1])[0])
+        if len(people) >= opts.top_k and area <= sorted(people, reverse=True)[opts.top_k - 1]:
+            weak = weak[:k]
+            break
+        posed.append(body_model.estimate(image, dets.boxes[i:i + 1]))
+        box = dets.boxes[i]
+        joints = int((posed[-1].keypoints[0, :, 2] >= opts.confirm_joint_score).sum())
+        inside = _share_inside(dets.boxes[i:i + 1], held).max(1, initial=0.0)[0] >= 0.5
+        if joints >= opts.confirm_joints and box[3] - box[1] >= opts.confirm_min_height and not inside:
+            people.append(area)
+    batch = PoseBatch.body_only(np.zeros((0, 17, 3), np.float32))
+    for b in posed:
+        batch = _joined(batch, b)
+    return weak, batch
+
+
+def _areas(boxes: np.ndarray) -> np.ndarray:
+    return (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
+
+
+def _joined(a: PoseBatch, b: PoseBatch) -> PoseBatch:
+    if not len(a) or not len(b):
+        return b if not len(a) else a
+    world = np.concatenate([a.world, b.world]) if a.world is not None and b.world is not None else None
+    return PoseBatch(np.concatenate([a.keypoints, b.keypoints]), np.concatenate([a.feet, b.feet]), world)
 
 
 @dataclass

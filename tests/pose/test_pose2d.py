@@ -233,6 +233,33 @@ def test_a_weak_box_is_a_person_only_when_its_pose_confirms_one(media_dir: Path,
     assert len(none) == 0  # confirmation off: weak boxes are not people
 
 
+def test_with_top_k_sure_people_a_smaller_weak_box_is_not_posed_and_a_larger_one_still_is() -> None:
+    """Only the top_k largest people are kept: once top_k sure people are posed, a weak box no
+    larger than the smallest of them (a bystander in the crowd) cannot be kept, so the body model
+    is not run on it; a larger weak box (someone close and cut off) still is, and may be kept."""
+    from pipeline.pose.models.pose import PoseBatch
+
+    class CountingPose:
+        boxes: list = []
+
+        def estimate(self, image, boxes):
+            CountingPose.boxes += [tuple(b) for b in boxes]
+            kps = np.zeros((len(boxes), 17, 3), np.float32)
+            kps[:, :, :2] = np.asarray(boxes, np.float32).reshape(-1, 1, 4)[:, :, :2] + 10
+            kps[:, :, 2] = 0.8
+            return PoseBatch.body_only(kps)
+
+    sure_a, sure_b = [0, 0, 100, 300], [200, 0, 290, 280]
+    small_weak, large_weak = [400, 0, 450, 100], [500, 0, 700, 400]
+    dets = Detections(np.array([sure_a, sure_b, small_weak, large_weak], np.float32),
+                      np.array([0.9, 0.8, 0.3, 0.25], np.float32))
+    opts = Pose2dOptions(top_k=2, confirm_score=0.15, confirm_joints=6, min_joints=1)
+    people, batch = find_people(np.zeros((400, 800, 3), np.uint8), dets, CountingPose(), opts)
+    assert tuple(np.float32(small_weak)) not in CountingPose.boxes and len(CountingPose.boxes) == 3
+    assert people.boxes.tolist() == [large_weak, sure_a]  # the two largest, the confirmed weak one first
+    assert np.allclose(batch.keypoints[:, 0, :2], [[510, 10], [10, 10]])
+
+
 def test_a_very_dark_frame_is_brightened_so_the_dancer_is_found(media_dir: Path, default_models) -> None:
     models, opts = default_models
     image = cv2.imread(str(media_dir / "images/dance_frame100.jpg"))
