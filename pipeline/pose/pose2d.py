@@ -19,6 +19,7 @@ clear skeleton. Very dark frames are brightened first (:func:`lift_dark`).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import queue
 import threading
 from dataclasses import dataclass
@@ -127,17 +128,13 @@ def find_people(image: np.ndarray, dets: Detections, pose, opts: Pose2dOptions) 
         weak = weak[:0]
     body_model = pose.body if isinstance(pose, BodyAndFeet) else pose  # the feet only for the people kept
     batch: PoseBatch = body_model.estimate(image, sure.boxes)
-    weak, weak_batch = _confirm_largest_first(image, dets, weak, sure, batch, body_model, opts)
+    is_sure = _joints(batch.keypoints, opts) >= opts.min_joints
+    weak, weak_batch, confirmed = _confirm_largest_first(image, dets.boxes, weak, sure.boxes[is_sure], body_model,
+                                                         opts)
     batch = _joined(batch, weak_batch)
     boxes = np.concatenate([sure.boxes, dets.boxes[weak]]).reshape(-1, 4)
     scores = np.concatenate([sure.scores, dets.scores[weak]])
-    joints = (batch.keypoints[:, :, 2] >= opts.confirm_joint_score).sum(1)
-    is_sure = (np.arange(len(boxes)) < len(sure)) & (joints >= opts.min_joints)
-    # A weak box lying mostly inside a sure one is a part of that person (a lap, a torso), not another.
-    inside = _share_inside(boxes, sure.boxes[is_sure[: len(sure)]]).max(1, initial=0.0) >= 0.5
-    tall = boxes[:, 3] - boxes[:, 1] >= opts.confirm_min_height
-    confirmed = (np.arange(len(boxes)) >= len(sure)) & (joints >= opts.confirm_joints) & tall & ~inside
-    keep = np.flatnonzero(is_sure | confirmed)
+    keep = np.flatnonzero(np.concatenate([is_sure, confirmed]))
     keep = keep[np.lexsort((-scores[keep], -_areas(boxes[keep])))][: opts.top_k]
     people = Detections(boxes[keep], scores[keep])
     if isinstance(pose, BodyAndFeet):
@@ -146,33 +143,38 @@ def find_people(image: np.ndarray, dets: Detections, pose, opts: Pose2dOptions) 
     return people, PoseBatch(batch.keypoints[keep], batch.feet[keep], world)
 
 
-def _confirm_largest_first(image: np.ndarray, dets: Detections, weak: np.ndarray, sure: Detections,
-                           sure_batch: PoseBatch, body_model, opts: Pose2dOptions) -> tuple[np.ndarray, PoseBatch]:
-    """The weak candidates worth a pose (indices into ``dets``) and their poses, largest first.
+def _joints(keypoints: np.ndarray, opts: Pose2dOptions) -> np.ndarray:
+    """(N) each pose's joints at ``confirm_joint_score`` or more."""
+    return (keypoints[:, :, 2] >= opts.confirm_joint_score).sum(1)
 
-    Only the top_k largest people are kept, so once top_k people are known (sure ones with
-    ``min_joints``, weak ones confirmed), a candidate no larger than the top_k-th of them cannot be
-    kept (ties go to the surer box): it and every smaller one are not posed (a crowd's bystanders).
+
+def _confirm_largest_first(image: np.ndarray, boxes: np.ndarray, weak: np.ndarray, sure_people: np.ndarray,
+                           body_model, opts: Pose2dOptions) -> tuple[np.ndarray, PoseBatch, np.ndarray]:
+    """The weak candidates worth a pose (indices into ``boxes``), largest first, their poses, and
+    which of them the pose confirms: ``confirm_joints`` joints, tall enough, and not lying mostly
+    inside a sure person (then it is a part of them: a lap, a torso).
+
+    Only the top_k largest people are kept, so once top_k people are known (the ``sure_people``,
+    the weak ones confirmed), a candidate no larger than the top_k-th of them cannot be kept (ties
+    go to the surer box): it and every smaller one are not posed (a crowd's bystanders).
     """
-    weak = weak[np.argsort(-_areas(dets.boxes[weak]), kind="stable")]
-    held = sure.boxes[(sure_batch.keypoints[:, :, 2] >= opts.confirm_joint_score).sum(1) >= opts.min_joints]
-    people = list(_areas(held))  # the areas of the people known so far
+    weak = weak[np.argsort(-_areas(boxes[weak]), kind="stable")]
+    people = list(_areas(sure_people))  # the areas of the people known so far
     posed: list[PoseBatch] = []
+    confirmed: list[bool] = []
     for k, i in enumerate(weak):
-        area = float(_areas(dets.boxes[i:i + 1])[0])
+        area = float(_areas(boxes[i:i + 1])[0])
         if len(people) >= opts.top_k and area <= sorted(people, reverse=True)[opts.top_k - 1]:
             weak = weak[:k]
             break
-        posed.append(body_model.estimate(image, dets.boxes[i:i + 1]))
-        box = dets.boxes[i]
-        joints = int((posed[-1].keypoints[0, :, 2] >= opts.confirm_joint_score).sum())
-        inside = _share_inside(dets.boxes[i:i + 1], held).max(1, initial=0.0)[0] >= 0.5
-        if joints >= opts.confirm_joints and box[3] - box[1] >= opts.confirm_min_height and not inside:
+        posed.append(body_model.estimate(image, boxes[i:i + 1]))
+        inside = _share_inside(boxes[i:i + 1], sure_people).max(1, initial=0.0)[0] >= 0.5
+        confirmed.append(bool(_joints(posed[-1].keypoints, opts)[0] >= opts.confirm_joints
+                              and boxes[i, 3] - boxes[i, 1] >= opts.confirm_min_height and not inside))
+        if confirmed[-1]:
             people.append(area)
-    batch = PoseBatch.body_only(np.zeros((0, 17, 3), np.float32))
-    for b in posed:
-        batch = _joined(batch, b)
-    return weak, batch
+    batch = functools.reduce(_joined, posed, PoseBatch.body_only(np.zeros((0, 17, 3), np.float32)))
+    return weak, batch, np.array(confirmed, bool)
 
 
 def _areas(boxes: np.ndarray) -> np.ndarray:
