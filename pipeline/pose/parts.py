@@ -18,11 +18,14 @@ import dataclasses
 from pathlib import Path
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.compute as pc
+import pyarrow.parquet as pq
 
 from pipeline.core.itemstage import WorkItem, is_up_to_date
 from pipeline.core.storage import fingerprint
 from pipeline.pose.pose2d import Pose2dJob
-from pipeline.pose.pose2dfile import Poses, read_pose2d, write_pose2d
+from pipeline.pose.pose2dfile import Poses, write_pose2d
 
 
 def plan_parts(frames: int, fps: float, step: int, seconds: float) -> list[tuple[int, int]]:
@@ -53,21 +56,13 @@ def part_files(folder: Path) -> list[Path]:
 def join_parts(paths: list[Path], spans: list[tuple[int, int]]) -> Poses:
     """One segment's poses from its parts' files, in order; each frame once (a part's rows before
     the next part's first frame, the last part's all)."""
-    pieces = []
+    tables = []
     for k, path in enumerate(paths):
-        poses = read_pose2d(path).poses
+        table = pq.read_table(path)
         if k + 1 < len(spans):
-            poses = _rows(poses, poses.frame < spans[k + 1][0])
-        pieces.append(poses)
-    fields = Poses.__dataclass_fields__
-    return Poses(**{name: np.concatenate([np.asarray(getattr(p, name) if name != "interpolated"
-                                                     else p.interpolated_mask()) for p in pieces])
-                    for name in fields})
-
-
-def _rows(poses: Poses, mask: np.ndarray) -> Poses:
-    return Poses(**{name: (getattr(poses, name)[mask] if name != "interpolated" else poses.interpolated_mask()[mask])
-                    for name in Poses.__dataclass_fields__})
+            table = table.filter(pc.less(table["frame"], spans[k + 1][0]))
+        tables.append(table)
+    return Poses.from_table(pa.concat_tables(tables))
 
 
 def part_items(whole: WorkItem, spans: list[tuple[int, int]]) -> list[WorkItem]:
