@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import queue
 import threading
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,6 +29,7 @@ import cv2
 import numpy as np
 
 from pipeline.core.errors import InputError
+from pipeline.core.threads import threaded
 from pipeline.ingest.media import Frame
 from pipeline.ingest.segmentvideo import SegmentVideo, frames_of
 from pipeline.pose.keyframes import held, in_between, keyframe_step, people_change
@@ -201,47 +201,6 @@ class FramePoses:
     interpolated: bool = False  # drawn between two keyframes (keyframes.in_between), not posed
 
 
-_DONE = object()
-
-
-class _Failed:
-    def __init__(self, exc: BaseException) -> None:
-        self.exc = exc
-
-
-def _pump(source: Iterator[Any], out: queue.Queue, stop: threading.Event) -> None:
-    try:
-        for item in source:
-            while not stop.is_set():
-                try:
-                    out.put(item, timeout=0.1)
-                    break
-                except queue.Full:
-                    continue
-            if stop.is_set():
-                return
-        out.put(_DONE)
-    except BaseException as exc:  # re-raised in the consumer thread
-        out.put(_Failed(exc))
-
-
-def _drain(q: queue.Queue) -> Iterator[Any]:
-    while True:
-        item = q.get()
-        if item is _DONE:
-            return
-        if isinstance(item, _Failed):
-            raise item.exc
-        yield item
-
-
-def _threaded(source: Iterator[Any], size: int, stop: threading.Event) -> Iterator[Any]:
-    q: queue.Queue = queue.Queue(maxsize=size)
-    thread = threading.Thread(target=_pump, args=(source, q, stop), daemon=True)
-    thread.start()
-    return _drain(q)
-
-
 def keypoint_extent(keypoints: np.ndarray, min_score: float) -> np.ndarray:
     """(N x 4) the box spanned by each person's keypoints of at least ``min_score``; NaN when fewer than 3."""
     boxes = np.full((len(keypoints), 4), np.nan, np.float32)
@@ -370,7 +329,7 @@ def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opt
 
     try:
         q = opts.queue_size
-        stream = _threaded(people(_threaded(detected(_threaded(decoded(), q, stop)), q, stop)), q, stop)
+        stream = threaded(people(threaded(detected(threaded(decoded(), q, stop)), q, stop)), q, stop)
         keyframe: FramePoses | None = None
         between: list[Frame] = []  # frames since the last keyframe, waiting for the next
         for item in stream:
