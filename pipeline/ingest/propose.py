@@ -5,7 +5,8 @@ Three cues, each on a one-second grid of the video's clock (from its first frame
 - music: sound that is loud enough, mostly harmonic (HPSS) and without the pauses of speech
   (the share of low-energy frames, a classic speech/music cue);
 - people moving: RTMDet + the body pose model on a few frames per second; motion is the
-  median joint speed of each person in body heights per second, matched across samples by IoU.
+  spread over 4 s of each person's joints about their body's centre, in body heights, people
+  matched across samples by IoU (``people_cues``).
 
 A second is *dance* when all three hold. Runs of dance seconds inside one shot, with short
 gaps filled, become proposals; a run that reaches a shot's edge takes the cut's exact time.
