@@ -15,6 +15,8 @@ reference (``fps: 0, det_every: 1``, the rest of params.yaml's pose2d section):
   to it in that frame (Hungarian on OKS; a reference person with no match counts 0). OKS as COCO
   defines it (its 17 sigmas), with the reference's keypoints of score >= 0.3 as the truth and its
   box area x 0.53 as the object's area (the usual stand-in for a segmented area);
+- ``feet``: the heels' and toes' distance from the reference's (its points of score >= 0.3),
+  in shares of the reference's box height, mean and 90th percentile over the matched people;
 - ``id_switches``: after tracking both, how often the configuration's track matched to one of the
   reference's tracks changes to another (frames without a match are skipped).
 
@@ -85,14 +87,15 @@ def run(clip: Path, models, opts) -> tuple[float, dict]:
     poses, frames = collect_poses(counted(estimate_segment(view, fps, models.detector, models.pose, opts)))
     tracks = assign_tracks(poses.frame, poses.box, poses.keypoints)
     return time.perf_counter() - start, {"frame": poses.frame, "box": poses.box, "kp": poses.keypoints,
+                                         "feet": poses.feet,
                                          "track": tracks, "frames": frames,
                                          "detected": detected[0] / max(detected[2], 1),
                                          "posed": detected[1] / max(detected[2], 1)}
 
 
 def compare(ref: dict, run_: dict) -> dict:
-    """Mean OKS, people per frame and id switches of ``run_`` against ``ref``."""
-    scores, pairs = [], []
+    """Mean OKS, feet error, people per frame and id switches of ``run_`` against ``ref``."""
+    scores, pairs, feet = [], [], []
     for f in range(ref["frames"]):
         a, b = np.flatnonzero(ref["frame"] == f), np.flatnonzero(run_["frame"] == f)
         if not len(a):
@@ -108,12 +111,19 @@ def compare(ref: dict, run_: dict) -> dict:
             rows, cols = linear_sum_assignment(-table)
             got[rows] = table[rows, cols]
             pairs += [(ref["track"][a[r]], run_["track"][b[c]]) for r, c in zip(rows, cols) if table[r, c] > 0.5]
+            for r, c in zip(rows, cols):
+                truth, height = ref["feet"][a[r]], float(ref["box"][a[r]][3] - ref["box"][a[r]][1])
+                seen = truth[:, 2] >= VISIBLE
+                if table[r, c] > 0.5 and seen.any():
+                    miss = np.linalg.norm(truth[seen, :2] - run_["feet"][b[c]][seen, :2], axis=1)
+                    feet += list(miss / max(height, 1.0))
         scores += [s for s, ia in zip(got, a) if (ref["kp"][ia][:, 2] >= VISIBLE).any()]
     switches = 0
     for track in {t for t, _ in pairs if t >= 0}:
         seen = [o for t, o in pairs if t == track and o >= 0]
         switches += sum(1 for x, y in zip(seen, seen[1:]) if x != y)
     return {"oks": round(float(np.mean(scores)), 4) if scores else float("nan"),
+            "feet": [round(float(np.mean(feet)), 4), round(float(np.quantile(feet, 0.9)), 4)] if feet else None,
             "people": round(len(run_["frame"]) / max(run_["frames"], 1), 3),
             "people_reference": round(len(ref["frame"]) / max(ref["frames"], 1), 3),
             "id_switches": switches}
