@@ -173,7 +173,9 @@ def sample_people(video: SegmentVideo, models, opts: ProposeOptions, pose_opts=N
     body = models.pose.body if isinstance(models.pose, BodyAndFeet) else models.pose
 
     def decoded() -> Iterator[tuple[float, np.ndarray, Any]]:
-        for frame in video.iter_frames(tap=tap):
+        # Every sampled slot kept, so the decoder skips the non-reference frames no sample shows;
+        # the cut finder compares the frames decoded (about half of an H.264 stream with B-frames).
+        for frame in video.iter_frames(tap=tap, keep=_every, tap_all=False):
             image = lift_dark(frame.image, pose_opts.dark_mean)
             yield frame.time, image, models.detector.preprocess(image)
 
@@ -192,6 +194,10 @@ def sample_people(video: SegmentVideo, models, opts: ProposeOptions, pose_opts=N
     finally:
         stop.set()
     return samples
+
+
+def _every(index: int) -> bool:
+    return True
 
 
 def people_cues(samples: list[Sample], seconds: int, cuts: list[float] = ()) -> tuple[np.ndarray, np.ndarray]:

@@ -69,7 +69,7 @@ class SegmentVideo:
 
     def iter_frames(self, *, max_bad_packets: int = 25, keep: Callable[[int], bool] | None = None,
                     tap: Callable[[av.VideoFrame], None] | None = None, first: int = 0,
-                    skip: bool = True) -> Iterator[Frame]:
+                    skip: bool = True, tap_all: bool = True) -> Iterator[Frame]:
         """The segment's frames, in order: Frame(k, k / rate, upright BGR image of width x height),
         from frame ``first`` on (seeking to it).
 
@@ -79,7 +79,8 @@ class SegmentVideo:
         and no other frame refers to (H.264's non-reference frames, often half of a stream): a
         frame not kept whose source frame was skipped converts from a second decode of the view
         (:class:`_Redecode`). ``tap`` sees every source frame decoded for the segment, in order
-        (e.g. to find cuts).
+        (e.g. to find cuts); with ``tap_all`` False the decoder may still skip, and ``tap`` sees
+        only the frames it decoded.
         """
         if self.frames < 1 or first >= self.frames:
             return
@@ -87,7 +88,7 @@ class SegmentVideo:
         half = 0.5 / rate
         emitted = first
         held = None  # (decoded frame, converted image or None, its time on the segment's clock)
-        skips = _Skips() if keep is not None and skip and tap is None else None
+        skips = _Skips() if keep is not None and skip and (tap is None or not tap_all) else None
         again = _Redecode(self) if skips is not None else None  # for frames the decoder skipped
         with _open(self.source) as container:
             streams = video_streams(container)

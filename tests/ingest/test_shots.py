@@ -52,3 +52,18 @@ def test_a_threshold_above_every_score_finds_no_cut(three_shots: Path) -> None:
     for _ in SegmentVideo(three_shots, 0.0, Fraction(4), 20, 160, 120).iter_frames(tap=finder.push):
         pass
     assert finder.cuts() == []
+
+
+def test_cuts_found_from_only_the_frames_a_skipping_decoder_decodes_are_the_same(three_shots: Path) -> None:
+    finder = CutFinder(threshold=10.0)
+    seen = []
+
+    def tap(frame) -> None:
+        seen.append(frame.pts)
+        finder.push(frame)
+
+    view = SegmentVideo(three_shots, 0.0, Fraction(4), 20, 160, 120)
+    shown = sum(1 for _ in view.iter_frames(tap=tap, keep=lambda k: True, tap_all=False))
+    assert shown == 20
+    assert len(seen) < 100  # of 123: the non-reference frames no shown frame needs were skipped
+    assert finder.cuts() == [2.0, 3.6]
