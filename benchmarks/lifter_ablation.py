@@ -42,7 +42,8 @@ def variants(steps: int) -> dict[str, LifterConfig]:
     centred = replace(noise, input_norm="centred")  # the loss terms did not help (docs/pipeline/3d.md): left out
     framing = replace(centred, augment=replace(centred.augment, fill=(0.2, 0.95)))
     return {"previous": previous, "+choreonet": choreo, "+noise": noise, "+losses": losses, "+centred": centred,
-            "+framing": framing, "+feet": replace(framing, feet=True), "rf81": replace(framing, filter_widths=(3, 3, 3, 3), channels=256),
+            "+framing": framing, "+feet": replace(framing, feet=True),
+            "rf81": replace(framing, filter_widths=(3, 3, 3, 3), channels=256),
             "rf243": replace(framing, filter_widths=(3, 3, 3, 3, 3), channels=256)}
 
 
