@@ -63,13 +63,15 @@ class Pose2dOptions:
     confirm_joints: int = 10       # ... with at least this many joints ...
     confirm_joint_score: float = 0.3  # ... at least this confident
     confirm_min_height: float = 40.0  # ... and is at least this tall (pixels): tiny crops give confident noise
+    confirm_min_share: float = 0.0    # ... and at least this share of the tallest sure person's height (0: any)
     min_joints: int = 0            # even a sure box needs this many joints at confirm_joint_score (0: none)
     dark_mean: float = 40.0        # frames darker than this mean pixel value are brightened (0: never)
 
     @staticmethod
     def from_params(params: dict) -> "Pose2dOptions":
         names = ("top_k", "fps", "det_every", "det_score", "confirm_score", "confirm_joints", "confirm_joint_score",
-                 "confirm_min_height", "min_joints", "dark_mean", "redetect_overlap", "redetect_joints", "carry_framed",
+                 "confirm_min_height", "confirm_min_share", "min_joints", "dark_mean", "redetect_overlap",
+                 "redetect_joints", "carry_framed",
                  "pose_changes")
         fields = {f: type(getattr(Pose2dOptions, f)) for f in names}
         return Pose2dOptions(**{f: kind(params[f]) for f, kind in fields.items() if f in params})
@@ -113,14 +115,16 @@ def find_people(image: np.ndarray, dets: Detections, pose, opts: Pose2dOptions) 
     Boxes at ``det_score`` or above are people if their pose has ``min_joints`` joints at
     ``confirm_joint_score`` (a detector's box around a poster or a whole test card has none);
     of the weaker ones (the ``top_k`` most confident), those at least ``confirm_min_height``
-    tall whose pose has ``confirm_joints`` such joints and that do not lie inside a sure box.
+    tall and ``confirm_min_share`` of the tallest sure box's height whose pose has
+    ``confirm_joints`` such joints and that do not lie inside a sure box.
     """
     strong = dets.scores >= opts.det_score
     sure = largest(Detections(dets.boxes[strong], dets.scores[strong]), opts.top_k)
     weak = np.flatnonzero(~strong)
     if opts.confirm_score > 0:  # the candidates worth a pose: tall enough, and not a part of a sure person
         box = dets.boxes[weak]
-        worth = (box[:, 3] - box[:, 1] >= opts.confirm_min_height) & (
+        tallest = float((sure.boxes[:, 3] - sure.boxes[:, 1]).max(initial=0.0))
+        worth = (box[:, 3] - box[:, 1] >= max(opts.confirm_min_height, opts.confirm_min_share * tallest)) & (
             _share_inside(box, sure.boxes).max(1, initial=0.0) < 0.5)
         weak = weak[worth]
         weak = weak[np.argsort(-dets.scores[weak], kind="stable")][: opts.top_k]
