@@ -260,6 +260,33 @@ def test_with_top_k_sure_people_a_smaller_weak_box_is_not_posed_and_a_larger_one
     assert np.allclose(batch.keypoints[:, 0, :2], [[510, 10], [10, 10]])
 
 
+def test_a_weak_box_far_smaller_than_the_dancer_is_not_posed_unless_no_share_is_asked() -> None:
+    """A bystander far behind a dancer (a weak box under confirm_min_share of the tallest sure
+    person's height) is not worth a pose: clean would propose their track keep=no ("small")."""
+    from pipeline.pose.models.pose import PoseBatch
+
+    class CountingPose:
+        def __init__(self) -> None:
+            self.boxes: list = []
+
+        def estimate(self, image, boxes):
+            self.boxes += [tuple(b) for b in boxes]
+            kps = np.zeros((len(boxes), 17, 3), np.float32)
+            kps[:, :, :2] = np.asarray(boxes, np.float32).reshape(-1, 1, 4)[:, :, :2] + 10
+            kps[:, :, 2] = 0.8
+            return PoseBatch.body_only(kps)
+
+    dancer, far, nearer = [0, 0, 150, 400], [300, 100, 330, 160], [400, 100, 440, 200]  # 400, 60, 100 px tall
+    dets = Detections(np.array([dancer, far, nearer], np.float32), np.array([0.9, 0.3, 0.3], np.float32))
+    image = np.zeros((400, 800, 3), np.uint8)
+    for share, posed in ((0.2, [dancer, nearer]), (0.0, [dancer, far, nearer])):
+        pose = CountingPose()
+        opts = Pose2dOptions(confirm_score=0.15, confirm_joints=6, min_joints=1, confirm_min_share=share)
+        people, _ = find_people(image, dets, pose, opts)
+        assert sorted(pose.boxes) == sorted(tuple(np.float32(b)) for b in posed)
+        assert people.boxes.tolist()[:2] == [dancer, nearer]
+
+
 def test_a_very_dark_frame_is_brightened_so_the_dancer_is_found(media_dir: Path, default_models) -> None:
     models, opts = default_models
     image = cv2.imread(str(media_dir / "images/dance_frame100.jpg"))
