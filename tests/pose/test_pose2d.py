@@ -233,29 +233,35 @@ def test_a_weak_box_is_a_person_only_when_its_pose_confirms_one(media_dir: Path,
     assert len(none) == 0  # confirmation off: weak boxes are not people
 
 
+class CountingPose:
+    """A body model that records the boxes it is asked to pose and gives each a confident pose
+    (every joint at its box's top-left corner + 10 px)."""
+
+    def __init__(self) -> None:
+        self.boxes: list = []
+
+    def estimate(self, image, boxes):
+        from pipeline.pose.models.pose import PoseBatch
+
+        self.boxes += [tuple(b) for b in boxes]
+        kps = np.zeros((len(boxes), 17, 3), np.float32)
+        kps[:, :, :2] = np.asarray(boxes, np.float32).reshape(-1, 1, 4)[:, :, :2] + 10
+        kps[:, :, 2] = 0.8
+        return PoseBatch.body_only(kps)
+
+
 def test_with_top_k_sure_people_a_smaller_weak_box_is_not_posed_and_a_larger_one_still_is() -> None:
     """Only the top_k largest people are kept: once top_k sure people are posed, a weak box no
     larger than the smallest of them (a bystander in the crowd) cannot be kept, so the body model
     is not run on it; a larger weak box (someone close and cut off) still is, and may be kept."""
-    from pipeline.pose.models.pose import PoseBatch
-
-    class CountingPose:
-        boxes: list = []
-
-        def estimate(self, image, boxes):
-            CountingPose.boxes += [tuple(b) for b in boxes]
-            kps = np.zeros((len(boxes), 17, 3), np.float32)
-            kps[:, :, :2] = np.asarray(boxes, np.float32).reshape(-1, 1, 4)[:, :, :2] + 10
-            kps[:, :, 2] = 0.8
-            return PoseBatch.body_only(kps)
-
     sure_a, sure_b = [0, 0, 100, 300], [200, 0, 290, 280]
     small_weak, large_weak = [400, 0, 450, 100], [500, 0, 700, 400]
     dets = Detections(np.array([sure_a, sure_b, small_weak, large_weak], np.float32),
                       np.array([0.9, 0.8, 0.3, 0.25], np.float32))
     opts = Pose2dOptions(top_k=2, confirm_score=0.15, confirm_joints=6, min_joints=1)
-    people, batch = find_people(np.zeros((400, 800, 3), np.uint8), dets, CountingPose(), opts)
-    assert tuple(np.float32(small_weak)) not in CountingPose.boxes and len(CountingPose.boxes) == 3
+    pose = CountingPose()
+    people, batch = find_people(np.zeros((400, 800, 3), np.uint8), dets, pose, opts)
+    assert tuple(np.float32(small_weak)) not in pose.boxes and len(pose.boxes) == 3
     assert people.boxes.tolist() == [large_weak, sure_a]  # the two largest, the confirmed weak one first
     assert np.allclose(batch.keypoints[:, 0, :2], [[510, 10], [10, 10]])
 
@@ -263,19 +269,6 @@ def test_with_top_k_sure_people_a_smaller_weak_box_is_not_posed_and_a_larger_one
 def test_a_weak_box_far_smaller_than_the_dancer_is_not_posed_unless_no_share_is_asked() -> None:
     """A bystander far behind a dancer (a weak box under confirm_min_share of the tallest sure
     person's height) is not worth a pose: clean would propose their track keep=no ("small")."""
-    from pipeline.pose.models.pose import PoseBatch
-
-    class CountingPose:
-        def __init__(self) -> None:
-            self.boxes: list = []
-
-        def estimate(self, image, boxes):
-            self.boxes += [tuple(b) for b in boxes]
-            kps = np.zeros((len(boxes), 17, 3), np.float32)
-            kps[:, :, :2] = np.asarray(boxes, np.float32).reshape(-1, 1, 4)[:, :, :2] + 10
-            kps[:, :, 2] = 0.8
-            return PoseBatch.body_only(kps)
-
     dancer, far, nearer = [0, 0, 150, 400], [300, 100, 330, 160], [400, 100, 440, 200]  # 400, 60, 100 px tall
     dets = Detections(np.array([dancer, far, nearer], np.float32), np.array([0.9, 0.3, 0.3], np.float32))
     image = np.zeros((400, 800, 3), np.uint8)
