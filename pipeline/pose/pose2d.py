@@ -121,7 +121,7 @@ def find_people(image: np.ndarray, dets: Detections, pose, opts: Pose2dOptions) 
     strong = dets.scores >= opts.det_score
     sure = largest(Detections(dets.boxes[strong], dets.scores[strong]), opts.top_k)
     weak = np.flatnonzero(~strong)
-    if opts.confirm_score > 0:  # the candidates worth a pose: tall enough, and not a part of a sure person
+    if opts.confirm_score > 0:  # worth a pose: tall enough, and not a part of a sure person (a lap, a torso)
         box = dets.boxes[weak]
         tallest = float((sure.boxes[:, 3] - sure.boxes[:, 1]).max(initial=0.0))
         worth = (box[:, 3] - box[:, 1] >= max(opts.confirm_min_height, opts.confirm_min_share * tallest)) & (
@@ -154,29 +154,28 @@ def _joints(keypoints: np.ndarray, opts: Pose2dOptions) -> np.ndarray:
 
 def _confirm_largest_first(image: np.ndarray, boxes: np.ndarray, weak: np.ndarray, sure_people: np.ndarray,
                            body_model, opts: Pose2dOptions) -> tuple[np.ndarray, PoseBatch, np.ndarray]:
-    """The weak candidates worth a pose (indices into ``boxes``), largest first, their poses, and
-    which of them the pose confirms: ``confirm_joints`` joints, tall enough, and not lying mostly
-    inside a sure person (then it is a part of them: a lap, a torso).
+    """The weak candidates worth a pose (indices into ``boxes``: already tall enough and not lying
+    inside a sure person, see find_people), largest first, their poses, and which of them the pose
+    confirms (``confirm_joints`` joints).
 
     Only the top_k largest people are kept, so once top_k people are known (the ``sure_people``,
     the weak ones confirmed), a candidate no larger than the top_k-th of them cannot be kept (ties
     go to the surer box): it and every smaller one are not posed (a crowd's bystanders).
     """
-    weak = weak[np.argsort(-_areas(boxes[weak]), kind="stable")]
+    areas = _areas(boxes[weak])
+    order = np.argsort(-areas, kind="stable")
+    weak, areas = weak[order], areas[order]
     people = list(_areas(sure_people))  # the areas of the people known so far
     posed: list[PoseBatch] = []
     confirmed: list[bool] = []
-    for k, i in enumerate(weak):
-        area = float(_areas(boxes[i:i + 1])[0])
+    for k, (i, area) in enumerate(zip(weak, areas)):
         if len(people) >= opts.top_k and area <= sorted(people, reverse=True)[opts.top_k - 1]:
             weak = weak[:k]
             break
         posed.append(body_model.estimate(image, boxes[i:i + 1]))
-        inside = _share_inside(boxes[i:i + 1], sure_people).max(1, initial=0.0)[0] >= 0.5
-        confirmed.append(bool(_joints(posed[-1].keypoints, opts)[0] >= opts.confirm_joints
-                              and boxes[i, 3] - boxes[i, 1] >= opts.confirm_min_height and not inside))
+        confirmed.append(bool(_joints(posed[-1].keypoints, opts)[0] >= opts.confirm_joints))
         if confirmed[-1]:
-            people.append(area)
+            people.append(float(area))
     batch = functools.reduce(_joined, posed, PoseBatch.body_only(np.zeros((0, 17, 3), np.float32)))
     return weak, batch, np.array(confirmed, bool)
 
