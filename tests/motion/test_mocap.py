@@ -9,10 +9,12 @@ import pytest
 
 from pipeline.motion.lifting.geometry import look_at, project, to_camera
 from pipeline.motion.mocap.skeleton import bone_lengths, coco_from_h36m
-from pipeline.motion.mocap.sources import SOURCES, load_source, resample
+from pipeline.motion.mocap.sources import MARKER_SOURCES, SOURCES, load_source, resample
 from pipeline.motion.quality import LIMBS
 
-ACROBATICS = ("backflip", "cartwheel", "crawl", "roll", "getup", "sideflip", "spinkick", "humanoid3d_spin", "005_06")
+# CMU 85: jumps, flips and breakdance floor work (MOCAP.md §14).
+ACROBATICS = ("backflip", "cartwheel", "crawl", "roll", "getup", "sideflip", "spinkick", "humanoid3d_spin", "005_06",
+              "mocap_recovery_c3d/85_")
 
 
 @pytest.fixture(scope="module")
@@ -30,8 +32,8 @@ def test_every_source_gives_a_human_with_rigid_limbs_and_head_up(sequences: dict
         limbs = bone_lengths(seq.h36m)[:, LIMBS]
         cv = limbs.std(0) / limbs.mean(0)
         # Forward kinematics keeps bones rigid; Tang's marker-like data and joint centres estimated
-        # from skin markers (ChoreoNet) vary a little (MOCAP.md §8, §8b).
-        assert cv.max() < (0.2 if source in ("tang2018_ballroom", "choreonet_c3d") else 1e-6), seq.name
+        # from skin markers (ChoreoNet, CMU and HDM05's C3D) vary a little (MOCAP.md §8, §8b, §14).
+        assert cv.max() < (0.2 if source in ("tang2018_ballroom", *MARKER_SOURCES) else 1e-6), seq.name
         head_up = (seq.h36m[:, 10, 1] > seq.h36m[:, 0, 1]).mean()
         if any(a in seq.name for a in ACROBATICS):
             assert head_up > 0.3, seq.name
@@ -55,11 +57,37 @@ def test_limb_lengths_match_the_documented_figures(sequences: dict, source: str)
 
 def test_left_is_left(sequences: dict) -> None:
     # Standing still and facing the way the hips say, the left wrist and ankle are on the left.
-    for source in ("perfume", "bandai_namco_2_subset", "cmu_subject05_iclone", "choreonet_c3d"):
+    for source in ("perfume", "bandai_namco_2_subset", "cmu_subject05_iclone", "choreonet_c3d", "bandai_namco_2_more",
+                   "cmu_salsa_60_61", "mocap_recovery_c3d"):
         seq = sequences[source][0]
         h = seq.h36m[0]
         left = h[4] - h[1]
         assert np.dot(h[13] - h[16], left) > 0 and np.dot(h[6] - h[3], left) > 0
+
+
+def test_left_agrees_with_the_facing_on_most_frames_of_every_source(sequences: dict) -> None:
+    # MOCAP.md §10: the left hip lies to the left of the way the toes point (0.92-1.0 of frames per source;
+    # acrobatics aside, where the toes point anywhere).
+    for source, seqs in sequences.items():
+        upright = [s for s in seqs if not any(a in s.name for a in ACROBATICS)]
+        h = np.concatenate([s.h36m for s in upright])
+        feet = np.concatenate([s.feet for s in upright])
+        facing = ((feet[:, 2] + feet[:, 3]) - (feet[:, 0] + feet[:, 1])) * [1.0, 0.0, 1.0]
+        left = h[:, 4] - h[:, 1]
+        on_left = np.cross(facing, left)[:, 1] > 0  # y up, right-handed: facing x left points up
+        assert on_left.mean() > 0.9, (source, on_left.mean())
+
+
+def test_the_salsa_is_rescaled_to_adult_size_with_both_partners_in_one_room(sequences: dict) -> None:
+    seqs = {s.name.split("/")[1][:5]: s for s in sequences["cmu_salsa_60_61"]}
+    assert len(seqs) == 28
+    leg = np.median(np.concatenate([bone_lengths(s.h36m)[:, LIMBS][:, :2].sum(1) for s in seqs.values()]))
+    assert 0.80 < leg < 0.90, leg  # the adult sources' thigh + shank: 0.74-0.98 m
+    lead, follow = seqs["60_01"], seqs["61_01"]
+    assert lead.frames == follow.frames
+    apart = np.linalg.norm((lead.h36m[:, 0] - follow.h36m[:, 0])[:, [0, 2]], axis=-1)
+    # MOCAP.md: 1.6 units apart at the first frame, 0.55 at frame 2000 (about 2.1 and 0.7 m here).
+    assert abs(apart[0] - 1.6 * 1.32) < 0.1 and abs(apart[2000] - 0.55 * 1.32) < 0.1, apart[[0, 2000]]
 
 
 def test_face_points_sit_around_the_head(sequences: dict) -> None:

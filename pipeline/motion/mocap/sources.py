@@ -89,9 +89,17 @@ BVH_SOURCES = {
         ("end", "Head"), "LeftArm", "LeftForeArm", "LeftHand", "RightArm", "RightForeArm", "RightHand"),
         (("end", "LeftToeBase"), ("end", "RightToeBase")), "tip"),
 }
-BVH_SOURCES["bandai_namco_2_subset"] = BvhSource("bandai_namco_2_subset", *list(
-    vars(BVH_SOURCES["bandai_namco_1"]).values())[1:])
-SOURCES = (*BVH_SOURCES, "deepmimic", "tang2018_ballroom", "choreonet_c3d")
+for _more in ("bandai_namco_2_subset", "bandai_namco_2_more"):  # dataset-2: the same rig as dataset-1
+    BVH_SOURCES[_more] = BvhSource(_more, *list(vars(BVH_SOURCES["bandai_namco_1"]).values())[1:])
+# CMU's salsa files are scaled to about 0.68 of an adult (MOCAP.md §13); both partners share one rig
+# whose thigh + shank is 0.642 units. 1.32 m per unit gives 0.85 m, the adult sources' median leg
+# (0.74-0.98 m), and 1.38 m from ankle to head joint (DanceDB 1.39-1.42). One factor for the whole
+# source keeps the two partners of a take in one room frame.
+BVH_SOURCES["cmu_salsa_60_61"] = BvhSource("cmu_salsa_60_61", 1.32, False, "replace", _body(
+    "hip", "rThigh", "rShin", "rFoot", "lThigh", "lShin", "lFoot", "chest", "neck", "head", ("top", 0.10),
+    "lShldr", "lForeArm", "lHand", "rShldr", "rForeArm", "rHand"), (("end", "lFoot"), ("end", "rFoot")), "ball")
+MARKER_SOURCES = ("choreonet_c3d", "mocap_recovery_c3d")  # Plug-in-Gait C3D (markers.py)
+SOURCES = (*BVH_SOURCES, "deepmimic", "tang2018_ballroom", *MARKER_SOURCES)
 
 
 def _to_canonical(points: np.ndarray, unit: float, z_up: bool) -> np.ndarray:
@@ -164,7 +172,8 @@ def _rig_feet(bvh: Bvh, source: BvhSource, positions: np.ndarray, rotations: np.
         else:  # the toes bend with the rig's toe joint
             tip = toe_point[flat] + (FOOT_TEMPLATE["tip"][0] - FOOT_TEMPLATE["ball"][0]) * size * forward
             tip[:, 1] = sole
-            tips.append(ride(tip, bvh.index(spec)))
+            # A ball End Site (CMU's foot) bends with its own joint, a ball joint with itself.
+            tips.append(ride(tip, bvh.index(spec[1] if isinstance(spec, tuple) else spec)))
     return feet_array((heels[0], heels[1]), (tips[0], tips[1]))
 
 
@@ -257,14 +266,14 @@ def load_markers(path: Path) -> MocapSequence:
 def load_source(root: Path, source: str, include_waltz: bool = False) -> list[MocapSequence]:
     """Every sequence of one source folder under ``root`` (the mocap folder)."""
     folder = Path(root) / source
-    if source in BVH_SOURCES:
-        return [load_bvh_sequence(p, BVH_SOURCES[source]) for p in sorted(folder.glob("*.bvh"))]
+    if source in BVH_SOURCES:  # the salsa keeps each subject in a folder of its own
+        return [load_bvh_sequence(p, BVH_SOURCES[source]) for p in sorted(folder.rglob("*.bvh"), key=lambda p: p.name)]
     if source == "deepmimic":
         return [load_deepmimic(p) for p in sorted(folder.glob("humanoid3d_*.txt")) if "character" not in p.name]
     if source == "tang2018_ballroom":
         # Waltz files are temporally subsampled (about 6 fps effective): left out unless asked for.
         return [load_tang(p) for p in sorted(folder.glob("*.npz")) if include_waltz or "_W_" not in p.name]
-    if source == "choreonet_c3d":
+    if source in MARKER_SOURCES:
         return [load_markers(p) for p in sorted(folder.glob("*.c3d"))]
     raise ValueError(f"unknown mocap source {source!r}; known: {', '.join(SOURCES)}")
 
