@@ -4,7 +4,8 @@
 (``pipeline/motion/lifting/weights/``), trained by the ``full`` profile, with the held-out
 figures and loss curve recorded in its metadata: no motion capture and no hour of training
 needed. ``shipped: false`` trains with the chosen ``profile`` on real motion capture from
-``train_lifter.mocap`` or $DANCE3D_MOCAP.
+``train_lifter.mocap`` or $DANCE3D_MOCAP, checkpointing to $DANCE3D_CHECKPOINTS (or
+~/.cache/dance3d/checkpoints): run it again after a stop and it resumes.
 """
 
 from __future__ import annotations
@@ -57,8 +58,16 @@ def run(root: Path) -> None:
     if params.get("shipped", False):
         use_shipped(root)
         return
-    from pipeline.motion.lifting.evaluate import split
-    from pipeline.motion.lifting.train import export_onnx, load_mocap, provenance, train_lifter
+    from pipeline.motion.lifting.evaluate import held_out_later, split
+    from pipeline.motion.lifting.train import (
+        checkpoint_path,
+        default_checkpoints,
+        evaluate,
+        export_onnx,
+        load_mocap,
+        provenance,
+        train_lifter,
+    )
 
     cfg = config_from_params(params)
     mocap = mocap_root(root, params, "train_lifter")
@@ -68,7 +77,13 @@ def run(root: Path) -> None:
         raise InputError(mocap, f"need training and held-out sequences; found {len(train)} and {len(val)} "
                                 "(check train_lifter.sources and train_lifter.holdout)")
     log.info("profile %s: training on %d sequences, holding out %d", params.get("profile"), len(train), len(val))
-    result = train_lifter(cfg, train, val)
+    checkpoint = checkpoint_path(default_checkpoints(), cfg, train)
+    log.info("checkpoints: %s (a stopped run resumes from it)", checkpoint)
+    result = train_lifter(cfg, train, val, checkpoint=checkpoint,
+                          checkpoint_minutes=float(params.get("checkpoint_minutes", 5)))
+    later = held_out_later(sequences)
+    if later:  # the later sources' own held-out table (evaluate.HOLDOUT_LATER)
+        result.metrics["heldout_later"] = evaluate(result.model, later, cfg)["heldout"]
     export_onnx(result.model, root / LIFTER, provenance(cfg, train, val, result, mocap), input_norm=cfg.input_norm)
     log.info("held-out MPJPE %.1f mm, P-MPJPE %.1f mm (mean pose %.1f mm); noisy 2D %.1f / %.1f mm",
              result.metrics["val_mpjpe_mm"], result.metrics["val_p_mpjpe_mm"], result.metrics["mean_pose_mpjpe_mm"],

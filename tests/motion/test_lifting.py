@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,7 @@ from pipeline.motion.lifting.evaluate import split
 from pipeline.motion.lifting.geometry import p_mpjpe
 from pipeline.motion.lifting.infer import Lifter, fill_low_confidence
 from pipeline.motion.lifting.model import TemporalModel
-from pipeline.motion.lifting.train import LifterConfig, export_onnx, load_mocap, train_lifter
+from pipeline.motion.lifting.train import LifterConfig, checkpoint_path, export_onnx, load_mocap, train_lifter
 from pipeline.motion.mocap.skeleton import bone_lengths
 from pipeline.motion.quality import LIMBS
 
@@ -283,6 +284,35 @@ def test_training_twice_gives_the_same_lifter_bytes(mocap_dir: Path, tmp_path: P
     for k in range(2):
         export_onnx(train_lifter(cfg, train, val[:1]).model, tmp_path / f"{k}.onnx", input_norm=cfg.input_norm)
     assert (tmp_path / "0.onnx").read_bytes() == (tmp_path / "1.onnx").read_bytes()
+
+
+def test_training_stopped_and_resumed_gives_the_bytes_of_an_uninterrupted_run(mocap_dir: Path, tmp_path: Path) -> None:
+    # A session stopped mid-training leaves a checkpoint; starting again resumes from it.
+    cfg = LifterConfig(steps=20, channels=32, sources=("perfume", "dancedb_ucy"), eval_seconds=1)
+    train, val = split(load_mocap(mocap_dir, cfg), cfg.holdout)
+    whole = train_lifter(cfg, train, val[:1], evaluate_after=False, progress=False)
+    export_onnx(whole.model, tmp_path / "whole.onnx", input_norm=cfg.input_norm)
+    checkpoint = checkpoint_path(tmp_path / "checkpoints", cfg, train)
+    stopped = train_lifter(cfg, train, val[:1], checkpoint=checkpoint, stop_after=7, evaluate_after=False,
+                           progress=False)
+    assert len(stopped.losses) == 7 and checkpoint.is_file()
+    resumed = train_lifter(cfg, train, val[:1], checkpoint=checkpoint, evaluate_after=False, progress=False)
+    export_onnx(resumed.model, tmp_path / "resumed.onnx", input_norm=cfg.input_norm)
+    assert resumed.losses == whole.losses
+    assert (tmp_path / "whole.onnx").read_bytes() == (tmp_path / "resumed.onnx").read_bytes()
+    # Another config (or other data, or changed code) never resumes this run's checkpoint.
+    assert checkpoint_path(tmp_path / "checkpoints", replace(cfg, steps=21), train) != checkpoint
+    assert checkpoint_path(tmp_path / "checkpoints", cfg, train[1:]) != checkpoint
+
+
+def test_source_weights_set_each_sources_share_of_the_windows(mocap_dir: Path) -> None:
+    from pipeline.motion.lifting.data import AugmentOptions, PairSampler
+
+    train, _ = split(load_mocap(mocap_dir, LifterConfig(sources=("perfume", "dancedb_ucy"))))
+    plain = PairSampler(train, 27, AugmentOptions(), 0).share()
+    weighted = PairSampler(train, 27, AugmentOptions(), 0, weights={"perfume": 0.5}).share()
+    half = 0.5 * plain["perfume"]
+    assert weighted["perfume"] == pytest.approx(half / (half + plain["dancedb_ucy"]))
 
 
 def test_a_lifter_trains_with_feet_and_scores_them_apart_from_the_body(mocap_dir: Path) -> None:

@@ -12,6 +12,7 @@ With ``feet``, the heels and toe tips follow the 17 joints in both (``skeleton.F
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -130,20 +131,35 @@ def make_pair(seq: MocapSequence, length: int, rng: np.random.Generator, opts: A
 
 
 class PairSampler:
-    """Random training windows, sequences drawn in proportion to their length."""
+    """Random training windows, sequences drawn in proportion to their length times their
+    source's weight (``weights``: source -> factor, 1 where unnamed).
+
+    Batch ``step`` draws from its own generator, seeded by (seed, step): the data a step sees
+    does not depend on the steps before it, so training resumed at any step sees what an
+    uninterrupted run would."""
 
     def __init__(self, sequences: list[MocapSequence], length: int, opts: AugmentOptions, seed: int,
-                 input_norm: str = "screen", window: int = 27, feet: bool = False) -> None:
+                 input_norm: str = "screen", window: int = 27, feet: bool = False,
+                 weights: Mapping[str, float] | None = None) -> None:
         self.sequences = [s for s in sequences if s.frames >= 2]
         self.feet = feet
-        weights = np.array([s.frames for s in self.sequences], float)
-        self.p = weights / weights.sum()
+        weights = weights or {}
+        frames = np.array([s.frames * weights.get(s.source, 1.0) for s in self.sequences], float)
+        self.p = frames / frames.sum()
         self.length, self.opts = length, opts
         self.input_norm, self.window = input_norm, window
-        self.rng = np.random.default_rng(seed)
+        self.seed = seed
 
-    def batch(self, size: int) -> tuple[np.ndarray, np.ndarray]:
-        picks = self.rng.choice(len(self.sequences), size=size, p=self.p)
-        pairs = [make_pair(self.sequences[i], self.length, self.rng, self.opts, input_norm=self.input_norm,
+    def share(self) -> dict[str, float]:
+        """Each source's share of the windows drawn."""
+        shares: dict[str, float] = {}
+        for seq, p in zip(self.sequences, self.p):
+            shares[seq.source] = shares.get(seq.source, 0.0) + float(p)
+        return shares
+
+    def batch(self, size: int, step: int) -> tuple[np.ndarray, np.ndarray]:
+        rng = np.random.default_rng((self.seed, step))
+        picks = rng.choice(len(self.sequences), size=size, p=self.p)
+        pairs = [make_pair(self.sequences[i], self.length, rng, self.opts, input_norm=self.input_norm,
                            window=self.window, feet=self.feet) for i in picks]
         return np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs])

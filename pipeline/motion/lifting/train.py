@@ -1,13 +1,23 @@
-"""Training the lifter on motion capture, evaluating it on held-out sequences, exporting ONNX."""
+"""Training the lifter on motion capture, evaluating it on held-out sequences, exporting ONNX.
+
+Training survives a stopped session: a checkpoint (weights, optimiser, scheduler, losses) is
+written every few minutes, and a run started again with the same config, data and code resumes
+from it. Every step's randomness (its windows, augmentation and dropout) is seeded by the step
+number, so a resumed run gives the same bytes as one that was never stopped.
+"""
 
 from __future__ import annotations
 
+import hashlib
+import json
 import logging
+import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import torch
+from tqdm import tqdm
 
 from pipeline.motion.lifting.data import AugmentOptions, PairSampler
 from pipeline.motion.lifting.evaluate import HOLDOUT, evaluate_lifter
@@ -39,6 +49,9 @@ class LifterConfig:
     input_norm: str = "centred"    # screen: VideoPose3D's; centred: about the hips, by the body's size (geometry.py)
     feet: bool = False             # also take and return the heels and toe tips (21 joints in and out)
     sources: tuple[str, ...] = SOURCES
+    # source -> factor on its frames' share of the windows drawn (1 where unnamed): everyday motion
+    # must not drown the dance (docs/pipeline/3d.md)
+    source_weights: dict = field(default_factory=dict)
     # Held out by performer where a source names them, else by take (see docs/pipeline/3d.md).
     holdout: tuple[str, ...] = HOLDOUT
     eval_seconds: float = 60.0     # held-out protocol: at most this much of each sequence
@@ -75,7 +88,46 @@ def _loss(pred: torch.Tensor, target: torch.Tensor, cfg: LifterConfig) -> torch.
     return loss
 
 
-def train_lifter(cfg: LifterConfig, train: list[MocapSequence], val: list[MocapSequence]) -> TrainResult:
+def checkpoint_path(folder: Path, cfg: LifterConfig, train: list[MocapSequence]) -> Path:
+    """Where a run keeps its checkpoint: named by what makes the model (config, training
+    sequences, the training code), so a changed run never resumes another's."""
+    import sys
+
+    from pipeline.core.storage import code_fingerprint
+    from pipeline.motion.lifting import data, geometry, model
+    from pipeline.motion.mocap import bvh, markers, skeleton, sources
+
+    code = code_fingerprint(model, data, geometry, sys.modules[__name__], sources, markers, bvh, skeleton)
+    key = json.dumps({"cfg": asdict(cfg), "train": [(s.name, s.frames) for s in train], "code": code},
+                     sort_keys=True, default=str)
+    return Path(folder) / f"lifter-{hashlib.sha256(key.encode()).hexdigest()[:16]}.pt"
+
+
+def default_checkpoints() -> Path:
+    """``$DANCE3D_CHECKPOINTS``, else ``~/.cache/dance3d/checkpoints`` (outside any work tree)."""
+    configured = os.environ.get("DANCE3D_CHECKPOINTS")
+    cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return Path(configured) if configured else cache / "dance3d" / "checkpoints"
+
+
+def _save_checkpoint(path: Path, step: int, model, optimiser, scheduler, losses: list[float], elapsed: float) -> None:
+    from pipeline.core.storage import atomic_path
+
+    with atomic_path(path) as tmp:
+        torch.save({"step": step, "model": model.state_dict(), "optimiser": optimiser.state_dict(),
+                    "scheduler": scheduler.state_dict(), "losses": losses, "elapsed": elapsed}, tmp)
+
+
+def _step_seed(seed: int, step: int) -> int:
+    return (seed * 1_000_003 + step + 1) % (2 ** 63)
+
+
+def train_lifter(cfg: LifterConfig, train: list[MocapSequence], val: list[MocapSequence], *,
+                 checkpoint: Path | None = None, checkpoint_minutes: float = 5.0, progress: bool = True,
+                 stop_after: int | None = None, evaluate_after: bool = True) -> TrainResult:
+    """Train, resuming from ``checkpoint`` when it exists and saving to it every
+    ``checkpoint_minutes`` and at the end. ``stop_after``: stop (with a checkpoint) once this many
+    steps are done, as a stopped session would (tests, benchmarks)."""
     torch.manual_seed(cfg.seed)
     torch.set_num_threads(max(1, cfg.threads))
     joints = 21 if cfg.feet else 17
@@ -83,17 +135,29 @@ def train_lifter(cfg: LifterConfig, train: list[MocapSequence], val: list[MocapS
     rf = model.receptive_field
     pad = rf // 2
     length = rf + cfg.chunk - 1
-    sampler = PairSampler(train, length, cfg.augment, cfg.seed, cfg.input_norm, rf, cfg.feet)
+    sampler = PairSampler(train, length, cfg.augment, cfg.seed, cfg.input_norm, rf, cfg.feet, cfg.source_weights)
     optimiser = torch.optim.Adam(model.parameters(), lr=cfg.lr, amsgrad=True)
     gamma = (cfg.lr_final / cfg.lr) ** (1.0 / max(1, cfg.steps))
     scheduler = torch.optim.lr_scheduler.ExponentialLR(optimiser, gamma)
     losses: list[float] = []
-    started = time.monotonic()
-    for step in range(cfg.steps):
+    first, elapsed = 0, 0.0
+    if checkpoint is not None and Path(checkpoint).is_file():
+        state = torch.load(checkpoint, weights_only=False)
+        model.load_state_dict(state["model"])
+        optimiser.load_state_dict(state["optimiser"])
+        scheduler.load_state_dict(state["scheduler"])
+        first, losses, elapsed = state["step"], list(state["losses"]), state["elapsed"]
+        log.info("resuming from %s at step %d of %d", checkpoint, first, cfg.steps)
+    started = time.monotonic() - elapsed
+    saved = time.monotonic()
+    last = min(cfg.steps, stop_after) if stop_after is not None else cfg.steps
+    bar = tqdm(total=cfg.steps, initial=first, desc="train_lifter", unit="step", disable=not progress)
+    for step in range(first, last):
         model.train()
+        torch.manual_seed(_step_seed(cfg.seed, step))  # dropout: by step, as the data
         # BatchNorm momentum decays from 0.1 to 0.001, as in VideoPose3D's training.
         model.set_bn_momentum(0.1 * 0.01 ** (step / max(1, cfg.steps - 1)))
-        inputs, targets = sampler.batch(cfg.batch)
+        inputs, targets = sampler.batch(cfg.batch, step)
         target = torch.from_numpy(targets[:, pad: pad + cfg.chunk])
         pred = model(torch.from_numpy(inputs))
         loss = _loss(pred, target, cfg)
@@ -102,17 +166,25 @@ def train_lifter(cfg: LifterConfig, train: list[MocapSequence], val: list[MocapS
         optimiser.step()
         scheduler.step()
         losses.append(torch.linalg.norm(pred.detach() - target, dim=-1).mean().item())
-        if step % 500 == 0:
-            log.info("step %d/%d: training MPJPE %.1f mm", step, cfg.steps, 1000 * losses[-1])
+        bar.update(1)
+        if step % 50 == 0:
+            bar.set_postfix(mpjpe_mm=f"{1000 * sum(losses[-50:]) / len(losses[-50:]):.1f}")
+        if checkpoint is not None and time.monotonic() - saved > checkpoint_minutes * 60:
+            _save_checkpoint(checkpoint, step + 1, model, optimiser, scheduler, losses, time.monotonic() - started)
+            saved = time.monotonic()
         if cfg.max_minutes and time.monotonic() - started > cfg.max_minutes * 60:
             log.info("time budget reached after %d steps", step + 1)
             break
+    bar.close()
     train_seconds = time.monotonic() - started
-    metrics = evaluate(model, val, cfg)
+    if checkpoint is not None and len(losses) > first:
+        _save_checkpoint(checkpoint, len(losses), model, optimiser, scheduler, losses, train_seconds)
+    metrics = evaluate(model, val, cfg) if evaluate_after else {}
     metrics.update({"steps": len(losses), "receptive_field": rf, "channels": cfg.channels,
                     "filter_widths": list(cfg.filter_widths), "train_sequences": len(train),
-                    "val_sequences": len(val), "train_minutes": round(sum(s.frames for s in train) / cfg.fps / 60, 2),
-                    "train_seconds": round(train_seconds, 1)})
+                    "val_sequences": len(val), "train_minutes": round(sum(s.frames / s.fps for s in train) / 60, 2),
+                    "train_seconds": round(train_seconds, 1),
+                    "source_share": {k: round(v, 3) for k, v in sorted(sampler.share().items())}})
     return TrainResult(model, metrics, losses)
 
 
