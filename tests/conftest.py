@@ -21,6 +21,13 @@ from pipeline.ingest.media import ffmpeg_exe
 PROJECT = Path(__file__).resolve().parents[1]
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _checkpoints_in_a_temporary_folder(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Training checkpoints go to $DANCE3D_CHECKPOINTS: the tests' own, never the user's cache
+    (where a test's checkpoint would be resumed by a real run of the same config)."""
+    os.environ["DANCE3D_CHECKPOINTS"] = str(tmp_path_factory.mktemp("checkpoints"))
+
+
 def skip_or_fail(reason: str) -> None:
     """Skip a test whose real assets are missing here; in CI (DANCE3D_REQUIRE_ASSETS=1) fail it."""
     if os.environ.get("DANCE3D_REQUIRE_ASSETS") == "1":
