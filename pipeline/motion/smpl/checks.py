@@ -39,6 +39,25 @@ def joint_errors(smpl: SmplMotion, joints: np.ndarray, feet: np.ndarray | None =
     return out
 
 
+# Each limb's bone as (SMPL parent, SMPL child) and (H36M parent, H36M child).
+LIMB_BONES = {"left_upper_arm": ((16, 18), (11, 12)), "right_upper_arm": ((17, 19), (14, 15)),
+              "left_forearm": ((18, 20), (12, 13)), "right_forearm": ((19, 21), (15, 16)),
+              "left_thigh": ((1, 4), (4, 5)), "right_thigh": ((2, 5), (1, 2)),
+              "left_shin": ((4, 7), (5, 6)), "right_shin": ((5, 8), (2, 3))}
+
+
+def limb_directions(smpl: SmplMotion, joints: np.ndarray) -> dict[str, np.ndarray]:
+    """Per limb, the angle (degrees, per frame) between the SMPL bone and the world bone: what a
+    trainer sees of the arm's and leg's direction, whatever the two skeletons' bone lengths."""
+    out = {}
+    for name, ((a, b), (c, d)) in LIMB_BONES.items():
+        mine, theirs = smpl.joints[:, b] - smpl.joints[:, a], joints[:, d] - joints[:, c]
+        cos = (mine * theirs).sum(-1) / np.maximum(np.linalg.norm(mine, axis=-1) * np.linalg.norm(theirs, axis=-1),
+                                                   1e-12)
+        out[name] = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    return out
+
+
 def sliding(points: np.ndarray, planted: np.ndarray, fps: float) -> float:
     """Mean horizontal motion (mm per frame at 30 fps) of points (T x P x 3, y up) on the frames
     where each is planted (T x P) and on the frame before; NaN when none is."""

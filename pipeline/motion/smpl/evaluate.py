@@ -10,7 +10,10 @@ offsets times the clip's scale) is compared with the joints it came from:
 - foot sliding (mm a frame at 30 fps) of the ankles and balls of the feet on the frames where each
   stands (the world file's planted flags; the capture's own contact), before (the input's points)
   and after (SMPL's joints);
-- frames on which a joint leaves its human range (``checks.RANGES``, ``checks.HINGES``).
+- frames on which a joint leaves its human range (``checks.RANGES``, ``checks.HINGES``);
+- per limb (upper arms, forearms, thighs, shins), the angle between the SMPL bone and the world
+  bone in degrees, median and 95th percentile: the direction a trainer sees, whatever the two
+  skeletons' bone lengths.
 
 Baseline beside the figures: the SMPL rest skeleton placed at each frame's hips with no rotation
 (what a trainer would get from an exporter that wrote no poses): its mapped-point error.
@@ -92,6 +95,7 @@ def score_clip(clip: Clip) -> dict:
                               clip.feet)
     row = {"source": clip.source, "clip": clip.name, "frames": len(clip.joints), "scale": round(smpl.scale, 4),
            "errors": errors, "baseline": baseline, "own_proportions": own,
+           "directions": checks.limb_directions(smpl, clip.joints),
            "sliding_before": checks.sliding(before, clip.standing, clip.fps) if before is not None else float("nan"),
            "sliding_after": checks.sliding(checks.foot_points(smpl), clip.standing, clip.fps)
            if before is not None else float("nan"),
@@ -113,6 +117,16 @@ def _figures(values: np.ndarray) -> dict:
     return {"median_mm": round(float(np.median(values)), 1), "p95_mm": round(float(np.percentile(values, 95)), 1)}
 
 
+def _directions(rows: list[dict]) -> dict:
+    """Per limb, the SMPL bone's angle from the world bone (degrees): median and 95th percentile."""
+    out = {}
+    for name in rows[0]["directions"]:
+        values = np.concatenate([r["directions"][name] for r in rows])
+        out[name] = {"median_deg": round(float(np.median(values)), 1),
+                     "p95_deg": round(float(np.percentile(values, 95)), 1)}
+    return out
+
+
 def summarise(rows: list[dict]) -> dict:
     """Pooled errors, sliding and range counts over ``rows``."""
     frames = sum(r["frames"] for r in rows)
@@ -128,6 +142,7 @@ def summarise(rows: list[dict]) -> dict:
     return {"clips": len(rows), "frames": frames, "error": _pooled(rows, "errors"),
             "baseline_rest_pose": _pooled(rows, "baseline")["all"],
             "error_own_proportions": _pooled(rows, "own_proportions"),
+            "limb_direction_deg": _directions(rows),
             "sliding_before_mm": mean("sliding_before"), "sliding_after_mm": mean("sliding_after"),
             "frames_outside_range": outside, "scale_median": round(float(np.median([r["scale"] for r in rows])), 4)}
 
@@ -170,6 +185,9 @@ def format_report(result: dict) -> str:
                          f"{own[name]['median_mm']:7.1f} {own[name]['p95_mm']:7.1f}")
     lines.append("(own proportions: the SMPL tree with the clip's bone lengths, proportions.own_offsets: the inverse "
                  "kinematics' own error; the rest is SMPL's neutral proportions, which every trainer poses)")
+    lines.append("limb directions (all clips): the SMPL bone's angle from the world bone, median / p95 degrees")
+    for name, d in result["all"]["limb_direction_deg"].items():
+        lines.append(f"  {name:16s} {d['median_deg']:7.1f} {d['p95_deg']:7.1f}")
     if result["all"]["frames_outside_range"]:
         lines.append("frames outside range: " + ", ".join(f"{k} {v}" for k, v in
                                                           result["all"]["frames_outside_range"].items()))

@@ -15,11 +15,15 @@ heels and toe tips when the pose model gave them). The rules, joint by joint:
 - **collars**: each swings its shoulder towards the clip's shoulder (no twist), at most 30 degrees;
 - **neck**: up from the thorax to the head top, facing where the chest faces; **head**: none of its
   own (the nose of a lifted pose is too close to the head's axis to give a steady facing);
-- **hips and knees, shoulders and elbows**: two-bone inverse kinematics puts the ankle and the wrist
-  exactly where the clip has them (when the SMPL limb reaches); the knee and the elbow lie in the
-  clip's bending plane, whose normal is each limb's hinge axis, so the knee and elbow turn about
-  it alone and the twist of the thigh and the upper arm comes from it. A straight limb shows no
-  plane: its hinge carries over from the last frame that bent (a twist never jumps);
+- **hips and knees**: two-bone inverse kinematics puts the ankle exactly where the clip has it (when
+  the SMPL leg reaches), so a planted foot stays planted; the knee lies in the clip's bending plane,
+  whose normal is the leg's hinge axis, so the knee turns about it alone and the thigh's twist comes
+  from it. A straight limb shows no plane: its hinge carries over from the last frame that bent (a
+  twist never jumps);
+- **shoulders and elbows**: the upper arm and the forearm point where the clip's do, twisted by the
+  arm's hinge as the leg is. Arms touch nothing, and SMPL's arm bones are not the dancer's: placing
+  the wrist exactly (as the legs do) turned the upper arms and forearms 10-15 degrees away from the
+  world arms (median), which a trainer learns as the dance;
 - **ankles**: the foot points at the ball of the foot (72 % of the way from heel to toe tip) and rolls
   with the knee's hinge (the sole's own plane flips where heel, ankle and toe tip line up); without
   feet the ankle keeps the shin's frame;
@@ -189,15 +193,21 @@ def retarget(joints: np.ndarray, feet: np.ndarray | None = None, offsets: np.nda
         above = glob[:, PARENTS[root]] @ rest_hinge  # the rest hinge as the limb's parent holds it
         hinge = hinge_axes(h[:, mid_t] - h[:, mid_t - 1], h[:, end_t] - h[:, mid_t], above[0],
                            above if leg else None)
-        hinge = _square(hinge, unit(h[:, end_t] - pos[:, root]))
-        along = unit(h[:, end_t] - pos[:, root])
+        # The limb's line: from SMPL's hip to the clip's ankle (the leg reaches for it); the clip's own
+        # shoulder to wrist (the arm copies the clip's bones, square to their bending plane's normal).
+        along = unit(h[:, end_t] - (pos[:, root] if leg else h[:, mid_t - 1]))
+        hinge = _square(hinge, along)
         # The neutral hinge where the limb points now: the rest hinge carried by the smallest turn
         # from the limb's rest direction (as its parent holds it) to its direction now.
         rest_along = glob[:, PARENTS[root]] @ unit(o[middle] + o[end])
         neutral = (_swing(rest_along, along) @ above[..., None])[..., 0]
         hinge = limit_twist(hinge, neutral, along, TWIST_DEG["leg" if leg else "arm"])
-        mid, tip = two_bone(pos[:, root], h[:, end_t], hinge, scale * np.linalg.norm(o[middle]),
-                            scale * np.linalg.norm(o[end]))
+        if leg:  # the ankle exactly where it was: feet stand and slide on it
+            mid, tip = two_bone(pos[:, root], h[:, end_t], hinge, scale * np.linalg.norm(o[middle]),
+                                scale * np.linalg.norm(o[end]))
+        else:  # arms touch nothing: the world arm's directions, the wrist wherever SMPL's lengths put it
+            mid = pos[:, root] + scale * np.linalg.norm(o[middle]) * unit(h[:, mid_t] - h[:, mid_t - 1])
+            tip = mid + scale * np.linalg.norm(o[end]) * unit(h[:, end_t] - h[:, mid_t])
         glob[:, root] = _aligning(o[middle], rest_hinge, mid - pos[:, root], hinge)
         place(middle)
         glob[:, middle] = _aligning(o[end], rest_hinge, tip - pos[:, middle], hinge)
