@@ -108,10 +108,29 @@ def test_eval_group_scores_synthetic_groups_and_the_scene_beats_dancers_grounded
     report = capsys.readouterr().out
     assert report.splitlines()[0].split()[:4] == ["dancers", "method", "position", "m"]
     result = json.loads(out.read_text())
-    assert [row["dancers"] for row in result["runs"] if row["method"] == "scene"] == [2, 3, 4, 5, 6]
+    synthetic = [row for row in result["runs"] if row["method"] == "scene" and not row.get("real")]
+    assert [row["dancers"] for row in synthetic] == [2, 3, 4, 5, 6]
     scene, alone = result["scene"]["all"], result["baseline"]["all"]
     assert scene["position_m"] < alone["position_m"] and scene["floor_deg"] < alone["floor_deg"]
     assert scene["order_pairs"] > 0 and 0.0 <= scene["order_right"] <= 1.0
+    # The real duets beside them: both partners of the held-out salsa takes, one camera each here.
+    assert result["protocol"]["real_groups"] == [[f"cmu_salsa_60_61/{lead}_{take}_scaled" for lead in ("60", "61")]
+                                                  for take in ("14", "15")]
+    assert result["scene"]["real"]["runs"] == 2 and "real: groups captured together" in report
+
+
+def test_partners_captured_together_keep_their_real_places(mocap_dir: Path) -> None:
+    from pipeline.motion.mocap.sources import load_source
+    from pipeline.motion.world.group_eval import captured_together, place_together
+
+    pairs = captured_together(load_source(mocap_dir, "cmu_salsa_60_61"))
+    assert len(pairs) == 14 and all(a.frames == b.frames for a, b in pairs)
+    lead, follow = pairs[0]
+    placed, spots = place_together([lead, follow])
+    truth = np.linalg.norm(lead.h36m[:, 0] - follow.h36m[:, 0], axis=-1)
+    assert np.allclose(np.linalg.norm(placed[0].body[:, 0] - placed[1].body[:, 0], axis=-1), truth)
+    assert abs(min(np.percentile(p.body[:, 17:, 1], 5) for p in placed)) < 0.05  # standing on y = 0
+    assert np.allclose(spots.shape, (2, 2))
 
 
 def test_a_formation_keeps_dancers_apart_but_together() -> None:

@@ -18,6 +18,10 @@ Protocol:
   the group is grounded in one scene (``scene.ground_scene``); the baseline grounds each dancer
   alone (``grounding.ground_clip``) and places them by their own camera-frame root path.
 
+Real groups beside them: takes captured together in one room (CMU's salsa, both partners of the
+held-out takes), each kept in its real place and filmed by ``groups`` cameras drawn as above; they
+are summarised apart ("real"), not in "all".
+
 Metrics, per run, then medians per group size and over all:
 
 - position (m): every dancer's root at every frame after one similarity transform of the whole
@@ -105,6 +109,28 @@ def place(seq: MocapSequence, spot: np.ndarray) -> Placed:
     return Placed(np.concatenate([seq.h36m, seq.feet], 1) - shift, np.concatenate([seq.coco, seq.feet], 1) - shift)
 
 
+def place_together(takes: list[MocapSequence]) -> tuple[list[Placed], np.ndarray]:
+    """Takes captured together in one room (a real duet): one shift for all, so each keeps its real
+    place; the group's centre at the origin, its lowest standing level on y = 0. Returns the placed
+    takes and their spots (N x 2, their mean root on the floor)."""
+    level = min(standing_level(t.feet, t.fps) for t in takes)
+    centre = np.concatenate([t.h36m[:, 0] for t in takes]).mean(0)
+    shift = np.array([centre[0], level, centre[2]])
+    placed = [Placed(np.concatenate([t.h36m, t.feet], 1) - shift, np.concatenate([t.coco, t.feet], 1) - shift)
+              for t in takes]
+    return placed, np.array([p.body[:, 0, [0, 2]].mean(0) for p in placed])
+
+
+def captured_together(sequences: list[MocapSequence]) -> list[list[MocapSequence]]:
+    """The real groups among ``sequences``: CMU's salsa takes ``60_NN`` (lead) and ``61_NN`` (follow)
+    are the two partners of one take, in one room frame (MOCAP.md §13)."""
+    takes: dict[str, list[MocapSequence]] = {}
+    for seq in sequences:
+        if seq.source == "cmu_salsa_60_61":
+            takes.setdefault(seq.name.split("/")[1].split("_")[1], []).append(seq)
+    return [sorted(pair, key=lambda s: s.name) for _, pair in sorted(takes.items()) if len(pair) == 2]
+
+
 def film(dancers: list[Placed], camera: GroupCamera, spots: np.ndarray,
          rng: np.random.Generator) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray, np.ndarray]:
     """Per dancer: noisy 2D (T x 21 x 3: pixels and confidence, 0 where hidden behind a nearer
@@ -146,11 +172,16 @@ def group_scores(estimate: list[np.ndarray], truth: list[np.ndarray]) -> dict:
 
 
 def run_group(models: LiftModels, takes: list[MocapSequence], camera: GroupCamera, rng: np.random.Generator,
-              lamb: float = 1.0) -> dict[str, dict]:
-    """One group filmed by one camera, through the corpus's path: the scene and the baseline."""
+              lamb: float = 1.0, together: bool = False) -> dict[str, dict]:
+    """One group filmed by one camera, through the corpus's path: the scene and the baseline.
+    ``together``: the takes were captured together and keep their real places (no formation)."""
     frames = min(t.frames for t in takes)
-    spots = formation(len(takes), rng)
-    dancers = [place(first_seconds(t, frames / t.fps), spot) for t, spot in zip(takes, spots)]
+    cut = [first_seconds(t, frames / t.fps) for t in takes]
+    if together:
+        dancers, spots = place_together(cut)
+    else:
+        spots = formation(len(takes), rng)
+        dancers = [place(t, spot) for t, spot in zip(cut, spots)]
     seen, roots, rotation, _ = film(dancers, camera, spots, rng)
     lifted = lift_clips(models, [k[:, :17] for k in seen], [k[:, 17:] for k in seen], WIDTH, HEIGHT, VIDEO_FPS,
                         min_score=0.3, flip=True)
@@ -170,8 +201,11 @@ def run_group(models: LiftModels, takes: list[MocapSequence], camera: GroupCamer
 
 
 def evaluate_groups(models: LiftModels, sequences: list[MocapSequence], *, groups: int = 8, seconds: float = 15.0,
-                    sizes: tuple[int, ...] = SIZES, seed: int = 0, progress=None) -> dict:
-    """``groups`` groups of each size in ``sizes``; medians per size and over all, per method."""
+                    sizes: tuple[int, ...] = SIZES, seed: int = 0, progress=None,
+                    real: list[list[MocapSequence]] = ()) -> dict:
+    """``groups`` groups of each size in ``sizes``; medians per size and over all, per method.
+    ``real``: groups captured together (``captured_together``), each filmed by ``groups`` cameras
+    and summarised apart ("real")."""
     rng = np.random.default_rng(seed)
     takes = [first_seconds(resample(s, VIDEO_FPS), seconds) for s in sequences if s.feet is not None]
     takes = [t for t in takes if t.frames >= 0.8 * seconds * VIDEO_FPS]
@@ -186,6 +220,16 @@ def evaluate_groups(models: LiftModels, sequences: list[MocapSequence], *, group
             camera = GroupCamera(setup, height, float(rng.choice(PITCHES)), float(rng.uniform(*NEAREST)))
             for method, row in run_group(models, chosen, camera, rng).items():
                 runs.append({"method": method, "sequences": [t.name for t in chosen], **row})
+            if progress:
+                progress()
+    real_runs: list[dict] = []
+    for group in real:
+        cut = [first_seconds(resample(s, VIDEO_FPS), seconds) for s in group]
+        for _ in range(groups):
+            setup, height = SETUPS[int(rng.integers(len(SETUPS)))]
+            camera = GroupCamera(setup, height, float(rng.choice(PITCHES)), float(rng.uniform(*NEAREST)))
+            for method, row in run_group(models, cut, camera, rng, together=True).items():
+                real_runs.append({"method": method, "sequences": [t.name for t in group], **row})
             if progress:
                 progress()
 
@@ -204,7 +248,11 @@ def evaluate_groups(models: LiftModels, sequences: list[MocapSequence], *, group
         rows = [r for r in runs if r["method"] == method]
         result[method] = {"all": summary(rows),
                           **{str(size): summary([r for r in rows if r["dancers"] == size]) for size in sizes}}
-    result["runs"] = runs
+        if real_runs:
+            result[method]["real"] = summary([r for r in real_runs if r["method"] == method])
+    if real_runs:
+        result["protocol"]["real_groups"] = [[t.name for t in g] for g in real]
+    result["runs"] = runs + [{**r, "real": True} for r in real_runs]
     return result
 
 
@@ -213,19 +261,21 @@ def evaluate_group_folder(lifter, contact, mocap, *, heldout_only: bool = True, 
     """``dance3d eval group`` on a folder ``load_folder`` reads (held-out sequences of the known
     sources; a folder of your own capture is used whole)."""
     from pipeline.core.errors import InputError
-    from pipeline.motion.lifting.evaluate import split
+    from pipeline.motion.lifting.evaluate import held_out_later, split
     from pipeline.motion.lifting.infer import load_models
     from pipeline.motion.mocap.sources import load_folder
 
-    sequences = load_folder(Path(mocap))
-    held = split(sequences)[1] if heldout_only else []
-    sequences = held or sequences
+    everything = load_folder(Path(mocap))
+    held = split(everything)[1] if heldout_only else []
+    sequences = held or everything
+    # Real duets: the held-out salsa takes (a folder of one's own capture: every pair in it).
+    real = captured_together(held_out_later(everything) if heldout_only and held else everything)
     for path in (lifter, contact):
         if path is not None and not Path(path).is_file():
             raise InputError(path, "no such model")
     models = load_models(str(lifter), str(contact) if contact else "", threads)
     try:
-        result = evaluate_groups(models, sequences, groups=groups, seconds=seconds, progress=progress)
+        result = evaluate_groups(models, sequences, groups=groups, seconds=seconds, progress=progress, real=real)
     except ValueError as exc:
         raise InputError(mocap, str(exc)) from exc
     result["protocol"].update(lifter=str(lifter), contact_model=str(contact) if contact else "none",
@@ -238,12 +288,16 @@ def format_report(result: dict) -> str:
     """One line per group size and method."""
     lines = [f"{'dancers':8s} {'method':9s} {'position m':>11s} {'order right':>12s} {'pairs':>6s} "
              f"{'floor deg':>10s} {'hidden':>7s} {'runs':>5s}"]
-    for size in ["all", *map(str, result["protocol"]["sizes"])]:
+    sizes = ["all", *map(str, result["protocol"]["sizes"]), *(["real"] if "real" in result["scene"] else [])]
+    for size in sizes:
         for method in ("scene", "baseline"):
             row = result[method][size]
             lines.append(f"{size:8s} {method:9s} {row['position_m']:11.3f} {row['order_right']:12.3f} "
                          f"{row['order_pairs']:6d} {row['floor_deg']:10.2f} {row['hidden_share']:7.3f} "
                          f"{row['runs']:5d}")
+    if "real" in result["scene"]:
+        lines.append("real: groups captured together, in their real places (" + "; ".join(
+            " + ".join(name.split("/")[-1] for name in g) for g in result["protocol"]["real_groups"]) + ")")
     return "\n".join(lines)
 
 
