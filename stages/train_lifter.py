@@ -14,7 +14,6 @@ import logging
 import sys
 from pathlib import Path
 
-from pipeline.core.errors import InputError
 from pipeline.core.params import load_params, stage_params, with_profile
 from pipeline.core.paths import LIFTER, METRICS
 from pipeline.core.stage import run_stage, setup_logging
@@ -23,6 +22,7 @@ from pipeline.motion.shipped import (
     copy_shipped,
     mocap_root,
     recorded_metrics,
+    train_profile,
     write_training_outputs,
 )
 from pipeline.motion.shipped import config_from_params as shipped_config
@@ -58,33 +58,9 @@ def run(root: Path) -> None:
     if params.get("shipped", False):
         use_shipped(root)
         return
-    from pipeline.motion.lifting.evaluate import held_out_later, split
-    from pipeline.motion.lifting.train import (
-        checkpoint_path,
-        default_checkpoints,
-        evaluate,
-        export_onnx,
-        load_mocap,
-        provenance,
-        train_lifter,
-    )
-
     cfg = config_from_params(params)
-    mocap = mocap_root(root, params, "train_lifter")
-    sequences = load_mocap(mocap, cfg)
-    train, val = split(sequences, cfg.holdout)
-    if not train or not val:
-        raise InputError(mocap, f"need training and held-out sequences; found {len(train)} and {len(val)} "
-                                "(check train_lifter.sources and train_lifter.holdout)")
-    log.info("profile %s: training on %d sequences, holding out %d", params.get("profile"), len(train), len(val))
-    checkpoint = checkpoint_path(default_checkpoints(), cfg, train)
-    log.info("checkpoints: %s (a stopped run resumes from it)", checkpoint)
-    result = train_lifter(cfg, train, val, checkpoint=checkpoint,
-                          checkpoint_minutes=float(params.get("checkpoint_minutes", 5)))
-    later = held_out_later(sequences)
-    if later:  # the later sources' own held-out table (evaluate.HOLDOUT_LATER)
-        result.metrics["heldout_later"] = evaluate(result.model, later, cfg)["heldout"]
-    export_onnx(result.model, root / LIFTER, provenance(cfg, train, val, result, mocap), input_norm=cfg.input_norm)
+    result = train_profile(root / LIFTER, cfg, mocap_root(root, params, "train_lifter"),
+                           float(params.get("checkpoint_minutes", 5)))
     log.info("held-out MPJPE %.1f mm, P-MPJPE %.1f mm (mean pose %.1f mm); noisy 2D %.1f / %.1f mm",
              result.metrics["val_mpjpe_mm"], result.metrics["val_p_mpjpe_mm"], result.metrics["mean_pose_mpjpe_mm"],
              result.metrics["noisy_mpjpe_mm"], result.metrics["noisy_p_mpjpe_mm"])
