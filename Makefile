@@ -32,7 +32,7 @@ $(VENV)/.installed: pyproject.toml requirements.lock
 	$(PYTHON) -m venv $(VENV)
 	# torch first: the CPU wheel, so the `train` extra does not pull CUDA packages.
 	$(BIN)/pip install --quiet -c requirements.lock pip torch
-	$(BIN)/pip install --quiet -c requirements.lock -e '.[train,dev,ray,docs]'
+	$(BIN)/pip install --quiet -c requirements.lock -e '.[train,dev,ray,docs,openvino]'
 	touch $@
 
 # Refresh requirements.lock: resolve pyproject.toml's ranges afresh in a throw-away venv
@@ -43,7 +43,7 @@ lock:
 	$(PYTHON) -m venv $(LOCK_VENV)
 	$(LOCK_VENV)/bin/pip install --quiet --upgrade pip
 	$(LOCK_VENV)/bin/pip install --quiet torch==2.13.0
-	$(LOCK_VENV)/bin/pip install --quiet '.[train,dev,ray,docs]'
+	$(LOCK_VENV)/bin/pip install --quiet '.[train,dev,ray,docs,openvino]'
 	{ echo "# Exact versions CI tests with (pip constraints). Regenerate with 'make lock'."; \
 	  echo "# torch is the CPU build: install it before the project (see the Makefile)."; \
 	  $(LOCK_VENV)/bin/pip freeze --all --exclude-editable | grep -v '^dance3d' | sed 's/^torch==\([^+]*\)+cpu/torch==\1/'; \

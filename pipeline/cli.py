@@ -206,6 +206,10 @@ def _parser() -> argparse.ArgumentParser:
                              "(default: params.yaml)")
     pose2d.add_argument("--dark-mean", type=float, default=None,
                         help="brighten images darker than this mean pixel value; 0: never (default: params.yaml)")
+    pose2d.add_argument("--runtime", choices=("auto", "onnxruntime", "openvino"), default=None,
+                        help="the CPU runtime of the models (default: params.yaml's pose2d.runtime)")
+    pose2d.add_argument("--precision", choices=("auto", "f32", "bf16"), default=None,
+                        help="OpenVINO's inference precision (default: params.yaml's pose2d.precision)")
     pose2d.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
     beats = evaluate_sub.add_parser(
         "beats", help="both beat trackers against beat annotations (mir_eval), per file",
@@ -333,7 +337,8 @@ def _eval_pose2d(root: Path, args: argparse.Namespace) -> dict:
 
     params = stage_params(load_params(root / "params.yaml"), "pose2d")
     for key, value in (("detector", args.detector), ("pose_model", args.pose_model), ("det_score", args.det_score),
-                       ("confirm_score", args.confirm_score), ("dark_mean", args.dark_mean)):
+                       ("confirm_score", args.confirm_score), ("dark_mean", args.dark_mean),
+                       ("runtime", args.runtime), ("precision", args.precision)):
         if value is not None:
             params[key] = value
     files, hashes = model_files(root, params)

@@ -35,7 +35,7 @@ from pipeline.ingest.segmentvideo import SegmentVideo, frames_of
 from pipeline.pose.keyframes import held, in_between, keyframe_step, people_change
 from pipeline.pose.models.detector import Detections, FusedDetector, PicoDetDetector, RTMDetDetector, largest
 from pipeline.pose.models.pose import BlazePose, BodyAndFeet, MoveNetPose, PoseBatch, RTMPose, TinyPose
-from pipeline.pose.models.session import CUDA, create_session, providers
+from pipeline.pose.models.session import CUDA, choose_runtime, create_session, providers, runtime_label
 from pipeline.pose.pose2dfile import FEET, WORLD, Poses, SegmentInfo, write_pose2d
 from pipeline.pose.tracking import iou_matrix
 
@@ -427,6 +427,10 @@ class ModelFiles:
     det_score: float = 0.5      # the detectors' own threshold (Pose2dOptions.detector_floor)
     crop_padding: float = 1.25
     device: str = "auto"        # session.DEVICES
+    runtimes: tuple[tuple[str, str, str], ...] = ()  # (file, runtime, precision) where not ONNX Runtime f32
+
+    def runtime(self, path: str) -> tuple[str, str]:
+        return next(((r, p) for f, r, p in self.runtimes if f == path), ("onnxruntime", "f32"))
 
 
 def model_names(value: str | list[str]) -> list[str]:
@@ -445,15 +449,22 @@ def model_files(root: Path, params: dict) -> tuple[ModelFiles, dict[str, str]]:
     if len(poses) > 2:
         raise ValueError(f"pose2d.pose_model names {len(poses)} models; give one, or a body model + a feet model")
     paths = {spec.name: resolve_model(spec.name, root) for spec in dets + poses}
+    device = str(params.get("device", "auto"))
+    try:  # an unknown device or runtime, cuda without CUDA, openvino not installed: one clear line up front
+        providers(device)
+        chosen = {spec.name: choose_runtime(spec.kind, str(params.get("runtime", "auto")),
+                                            str(params.get("precision", "auto")), device) for spec in dets + poses}
+    except (ValueError, RuntimeError) as exc:
+        raise InputError(root / "params.yaml", f"pose2d.{exc}") from None
     files = ModelFiles(tuple((str(paths[d.name]), d.kind, d.input_size) for d in dets),
                        tuple((str(paths[p.name]), p.kind, p.input_size) for p in poses),
                        int(params.get("threads", 1)), Pose2dOptions.from_params(params).detector_floor,
-                       float(params.get("crop_padding", 1.25)), str(params.get("device", "auto")))
-    try:  # an unknown device, or cuda without CUDA: one clear line before any work
-        providers(files.device)
-    except (ValueError, RuntimeError) as exc:
-        raise InputError(root / "params.yaml", f"pose2d.{exc}") from None
-    return files, {name: sha256_file(path) for name, path in paths.items()}
+                       float(params.get("crop_padding", 1.25)), device,
+                       tuple((str(paths[name]), *chosen[name]) for name in paths if runtime_label(*chosen[name])))
+    # A runtime other than ONNX Runtime's f32 computes other numbers: it is an input of every file.
+    hashes = {name: sha256_file(path) for name, path in paths.items()}
+    hashes.update({f"{name}@runtime": runtime_label(*chosen[name]) for name in paths if runtime_label(*chosen[name])})
+    return files, hashes
 
 
 @dataclass(frozen=True)
@@ -478,7 +489,8 @@ def load_pose_models(files: ModelFiles) -> PoseModels:
     """One worker's sessions, built once and reused for every segment it gets."""
     detectors = []
     for path, kind, size in files.detectors:
-        session = create_session(Path(path), files.threads, device=files.device)
+        runtime, precision = files.runtime(path)
+        session = create_session(Path(path), files.threads, device=files.device, runtime=runtime, precision=precision)
         if kind == "rtmdet":
             detectors.append(RTMDetDetector(session, size, files.det_score))
         elif kind == "picodet":
@@ -491,8 +503,9 @@ def load_pose_models(files: ModelFiles) -> PoseModels:
         if kind not in POSE_WRAPPERS:
             raise ValueError(f"model kind {kind!r} is not a 2D pose model")
         batched = kind in BATCHED_KINDS and batch_crops(files.device)
+        runtime, precision = files.runtime(path)
         session = create_session(Path(path), files.threads, any_batch=batched, unused_outputs=UNUSED_OUTPUTS.get(kind),
-                                 device=files.device)
+                                 device=files.device, runtime=runtime, precision=precision)
         poses.append(POSE_WRAPPERS[kind](session, size, files.crop_padding))
     return PoseModels(detector, poses[0] if len(poses) == 1 else BodyAndFeet(*poses))
 

@@ -232,3 +232,76 @@ def test_the_pose2d_models_refuse_cuda_without_it_before_any_work(monkeypatch, m
         model_files(root, {"device": "cuda"})
     with pytest.raises(InputError, match=r"params\.yaml: pose2d\.device 'gpu'.*auto, cpu, cuda"):
         model_files(root, {"device": "gpu"})
+
+
+def test_openvino_runs_the_models_as_onnx_runtime_does_in_f32(models_dir: Path) -> None:
+    # OpenVINO reads the same ONNX bytes (here BlazePose pruned of its mask, as the stage builds it)
+    # and answers the same session calls; in f32 its outputs are ONNX Runtime's to rounding.
+    from pipeline.pose.pose2d import UNUSED_OUTPUTS
+
+    rng = np.random.default_rng(0)
+    for name, kind in (("tinypose_256x192.onnx", "tinypose"), ("blazepose_full.onnx", "blazepose")):
+        pair = [create_session(models_dir / name, 1, unused_outputs=UNUSED_OUTPUTS.get(kind), runtime=runtime)
+                for runtime in ("onnxruntime", "openvino")]
+        ports = [[(p.name, list(p.shape)) for p in s.get_outputs()] for s in pair]
+        assert ports[0] == ports[1] and [p.name for p in pair[0].get_inputs()] == [p.name for p in pair[1].get_inputs()]
+        port = pair[0].get_inputs()[0]
+        feed = {port.name: rng.uniform(0, 1, port.shape).astype(np.float32)}
+        for a, b in zip(*(s.run(None, feed) for s in pair)):
+            assert np.allclose(a, b, atol=2e-3 * max(1.0, float(np.abs(a).max()))), name
+
+
+def test_auto_runs_each_model_where_it_was_measured_best_and_in_onnx_runtime_without_openvino(monkeypatch) -> None:
+    from pipeline.pose.models import session
+
+    monkeypatch.setattr(session, "RUNTIME_CHOICE", {"tinypose": ("openvino", "bf16")})
+    monkeypatch.setattr(session, "openvino_available", lambda: True)
+    assert session.choose_runtime("tinypose") == ("openvino", "bf16")
+    assert session.choose_runtime("tinypose", precision="f32") == ("openvino", "f32")
+    assert session.choose_runtime("blazepose") == ("onnxruntime", "f32")  # not measured faster
+    assert session.choose_runtime("tinypose", runtime="onnxruntime") == ("onnxruntime", "f32")
+    assert session.choose_runtime("blazepose", runtime="openvino") == ("openvino", "f32")
+    # The package uninstalled: everything in ONNX Runtime, and asking for OpenVINO says how to get it.
+    monkeypatch.setattr(session, "openvino_available", lambda: False)
+    assert session.choose_runtime("tinypose") == ("onnxruntime", "f32")
+    with pytest.raises(RuntimeError, match="pip install openvino"):
+        session.choose_runtime("tinypose", runtime="openvino")
+    with pytest.raises(RuntimeError, match="bf16.*openvino"):
+        session.choose_runtime("tinypose", precision="bf16")
+
+
+PARAMS = {"detector": "rtmdet-nano-person", "pose_model": "tinypose+blazepose-full"}  # params.yaml's defaults
+
+
+def test_openvino_uninstalled_leaves_every_model_in_onnx_runtime(monkeypatch, models_dir: Path) -> None:
+    import sys
+
+    from pipeline.pose.models import session
+    from pipeline.pose.pose2d import load_pose_models, model_files
+
+    monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
+    monkeypatch.setitem(sys.modules, "openvino", None)  # import openvino now fails, as when not installed
+    monkeypatch.setattr(session, "RUNTIME_CHOICE", {"tinypose": ("openvino", "f32")})
+    root = Path(__file__).resolve().parents[2]
+    files, hashes = model_files(root, {**PARAMS, "device": "cpu"})
+    assert files.runtimes == () and not any(k.endswith("@runtime") for k in hashes)
+    models = load_pose_models(files)
+    assert type(models.pose.body.session).__name__ == "InferenceSession"
+    with pytest.raises(InputError, match=r"params\.yaml: pose2d\.runtime 'openvino'.*pip install openvino"):
+        model_files(root, {**PARAMS, "device": "cpu", "runtime": "openvino"})
+
+
+def test_a_runtime_other_than_onnx_runtime_f32_is_an_input_of_every_pose2d_file(models_dir: Path,
+                                                                                  monkeypatch) -> None:
+    from pipeline.pose.pose2d import load_pose_models, model_files
+
+    monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
+    root = Path(__file__).resolve().parents[2]
+    _, plain = model_files(root, {**PARAMS, "device": "cpu", "runtime": "onnxruntime"})
+    files, hashes = model_files(root, {**PARAMS, "device": "cpu", "runtime": "openvino", "precision": "f32"})
+    # ONNX Runtime's f32 adds nothing (files made before there was a choice are not redone) ...
+    assert set(plain) == {"rtmdet-nano-person", "tinypose", "blazepose-full"}
+    # ... another runtime is named beside each model's checksum, so its files are made anew.
+    assert hashes == {**plain, **{f"{name}@runtime": "openvino-f32" for name in plain}}
+    models = load_pose_models(files)
+    assert type(models.pose.body.session).__name__ == "OpenVinoSession"
