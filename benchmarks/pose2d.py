@@ -38,15 +38,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from pipeline.core.params import load_params, stage_params  # noqa: E402
 from pipeline.ingest.media import ffmpeg_exe, iter_frames, probe  # noqa: E402
 from pipeline.ingest.segmentvideo import SegmentVideo  # noqa: E402
-from pipeline.pose.pose2d import (  # noqa: E402
-    Pose2dOptions,
-    collect_poses,
-    estimate_segment,
-    find_people,
-    lift_dark,
-    load_pose_models,
-    model_files,
-)
+from pipeline.pose.models.loading import load_pose_models, model_files  # noqa: E402
+from pipeline.pose.pose2d import Pose2dOptions, collect_poses, estimate_segment, find_people, lift_dark  # noqa: E402
 from pipeline.pose.tracking import assign_tracks  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]

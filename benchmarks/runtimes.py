@@ -33,7 +33,7 @@ CONFIGS = (("onnxruntime", "f32"), ("openvino", "f32"), ("openvino", "bf16"))
 
 
 def _unused(kind: str):
-    from pipeline.pose.pose2d import UNUSED_OUTPUTS
+    from pipeline.pose.models.loading import UNUSED_OUTPUTS
 
     return UNUSED_OUTPUTS.get(kind)
 

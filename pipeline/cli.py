@@ -333,7 +333,8 @@ def _parser() -> argparse.ArgumentParser:
 def _eval_pose2d(root: Path, args: argparse.Namespace) -> dict:
     from pipeline.core.params import load_params, stage_params
     from pipeline.pose.evaluate import evaluate_pose2d
-    from pipeline.pose.pose2d import Pose2dOptions, load_pose_models, model_files
+    from pipeline.pose.models.loading import load_pose_models, model_files
+    from pipeline.pose.pose2d import Pose2dOptions
 
     params = stage_params(load_params(root / "params.yaml"), "pose2d")
     for key, value in (("detector", args.detector), ("pose_model", args.pose_model), ("det_score", args.det_score),
@@ -455,7 +456,7 @@ def _fetch_models(root: Path, args: argparse.Namespace) -> int:
     names = args.names
     if not names:
         pose2d = stage_params(load_params(root / "params.yaml"), "pose2d")
-        from pipeline.pose.pose2d import DEFAULT_DETECTOR, DEFAULT_POSE_MODEL, model_names
+        from pipeline.pose.models.loading import DEFAULT_DETECTOR, DEFAULT_POSE_MODEL, model_names
 
         names = model_names(pose2d.get("detector", DEFAULT_DETECTOR)) + model_names(
             pose2d.get("pose_model", DEFAULT_POSE_MODEL))

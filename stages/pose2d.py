@@ -22,9 +22,10 @@ from pipeline.core.storage import code_fingerprint, fingerprint
 from pipeline.ingest.catalog import read_index
 from pipeline.ingest.segmentvideo import SegmentVideo
 from pipeline.pose.keyframes import keyframe_step
+from pipeline.pose.models.loading import load_pose_models, model_files
 from pipeline.pose.models.session import describe
 from pipeline.pose.parts import join_segment, part_files, part_items, plan_parts
-from pipeline.pose.pose2d import Pose2dJob, Pose2dOptions, load_pose_models, model_files, pose_segment
+from pipeline.pose.pose2d import Pose2dJob, Pose2dOptions, pose_segment
 from pipeline.pose.pose2dfile import SCHEMA_VERSION, SegmentInfo
 
 log = logging.getLogger("dance3d.pose2d")

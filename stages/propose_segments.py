@@ -21,7 +21,8 @@ from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint, item_files
 from pipeline.ingest.catalog import read_ledger
 from pipeline.ingest.propose import SCHEMA_VERSION, SUMMARY, ProposeJob, ProposeOptions, propose_video, write_summary
-from pipeline.pose.pose2d import Pose2dOptions, load_pose_models, model_files, model_names
+from pipeline.pose.models.loading import load_pose_models, model_files, model_names
+from pipeline.pose.pose2d import Pose2dOptions
 
 log = logging.getLogger("dance3d.propose_segments")
 CODE = code_fingerprint(pipeline.ingest.propose)

@@ -28,19 +28,14 @@ from typing import Any, Callable, Iterator
 import cv2
 import numpy as np
 
-from pipeline.core.errors import InputError
 from pipeline.core.threads import threaded
 from pipeline.ingest.media import Frame
 from pipeline.ingest.segmentvideo import SegmentVideo, frames_of
 from pipeline.pose.keyframes import held, in_between, keyframe_step, people_change
 from pipeline.pose.models.detector import Detections, FusedDetector, PicoDetDetector, RTMDetDetector, largest
 from pipeline.pose.models.pose import BlazePose, BodyAndFeet, MoveNetPose, PoseBatch, RTMPose, TinyPose
-from pipeline.pose.models.session import CUDA, choose_runtime, create_session, providers, runtime_label
 from pipeline.pose.pose2dfile import FEET, WORLD, Poses, SegmentInfo, write_pose2d
 from pipeline.pose.tracking import iou_matrix
-
-DEFAULT_DETECTOR = "rtmdet-nano-person"
-DEFAULT_POSE_MODEL = "movenet-lightning"
 
 
 @dataclass(frozen=True)
@@ -418,96 +413,9 @@ def collect_poses(frames: Iterator[FramePoses], progress: Callable[[], None] | N
 # --- the pose2d stage's worker -----------------------------------------------------------
 
 @dataclass(frozen=True)
-class ModelFiles:
-    """What a worker needs to build its sessions (resolved once, in the stage's process)."""
-
-    detectors: tuple[tuple[str, str, tuple[int, int]], ...]  # (file, kind, input size): several are fused
-    poses: tuple[tuple[str, str, tuple[int, int]], ...]      # the body's model, then optionally the feet's
-    threads: int = 1
-    det_score: float = 0.5      # the detectors' own threshold (Pose2dOptions.detector_floor)
-    crop_padding: float = 1.25
-    device: str = "auto"        # session.DEVICES
-    runtimes: tuple[tuple[str, str, str], ...] = ()  # (file, runtime, precision) where not ONNX Runtime f32
-
-    def runtime(self, path: str) -> tuple[str, str]:
-        return next(((r, p) for f, r, p in self.runtimes if f == path), ("onnxruntime", "f32"))
-
-
-def model_names(value: str | list[str]) -> list[str]:
-    """``pose2d.detector`` / ``pose2d.pose_model``: one registry name, or several (a list, or joined by '+')."""
-    names = value if isinstance(value, list) else str(value).split("+")
-    return [n.strip() for n in names if n.strip()]
-
-
-def model_files(root: Path, params: dict) -> tuple[ModelFiles, dict[str, str]]:
-    """Resolve every model in the main process, so a missing one is one clear error up front."""
-    from pipeline.core.storage import sha256_file
-    from pipeline.pose.models.registry import get_spec, resolve_model
-
-    dets = [get_spec(name) for name in model_names(params.get("detector", DEFAULT_DETECTOR))]
-    poses = [get_spec(name) for name in model_names(params.get("pose_model", DEFAULT_POSE_MODEL))]
-    if len(poses) > 2:
-        raise ValueError(f"pose2d.pose_model names {len(poses)} models; give one, or a body model + a feet model")
-    paths = {spec.name: resolve_model(spec.name, root) for spec in dets + poses}
-    device = str(params.get("device", "auto"))
-    try:  # an unknown device or runtime, cuda without CUDA, openvino not installed: one clear line up front
-        providers(device)
-        chosen = {spec.name: choose_runtime(spec.kind, str(params.get("runtime", "auto")),
-                                            str(params.get("precision", "auto")), device) for spec in dets + poses}
-    except (ValueError, RuntimeError) as exc:
-        raise InputError(root / "params.yaml", f"pose2d.{exc}") from None
-    files = ModelFiles(tuple((str(paths[d.name]), d.kind, d.input_size) for d in dets),
-                       tuple((str(paths[p.name]), p.kind, p.input_size) for p in poses),
-                       int(params.get("threads", 1)), Pose2dOptions.from_params(params).detector_floor,
-                       float(params.get("crop_padding", 1.25)), device,
-                       tuple((str(paths[name]), *chosen[name]) for name in paths if runtime_label(*chosen[name])))
-    # A runtime other than ONNX Runtime's f32 computes other numbers: it is an input of every file.
-    hashes = {name: sha256_file(path) for name, path in paths.items()}
-    hashes.update({f"{name}@runtime": runtime_label(*chosen[name]) for name in paths if runtime_label(*chosen[name])})
-    return files, hashes
-
-
-@dataclass(frozen=True)
 class PoseModels:
     detector: RTMDetDetector | PicoDetDetector | FusedDetector
     pose: MoveNetPose | RTMPose | TinyPose | BlazePose | BodyAndFeet
-
-
-POSE_WRAPPERS = {"movenet": MoveNetPose, "rtmpose": RTMPose, "tinypose": TinyPose, "blazepose": BlazePose}
-BATCHED_KINDS = ("tinypose", "blazepose")  # published with a batch of 1: on a GPU, edited to take a frame's crops
-UNUSED_OUTPUTS = {"blazepose": BlazePose.unused_output}  # removed from the graph at load (pruning.without_outputs)
-
-
-def batch_crops(device: str) -> bool:
-    """Whether a frame's crops go to the crop models in one call: on a GPU. On the CPU one crop
-    per call is faster (2 cores: five TinyPose crops 56 ms one by one against 71 ms at once, their
-    activations overflowing the core's cache; BlazePose the same either way)."""
-    return providers(device)[0] == CUDA
-
-
-def load_pose_models(files: ModelFiles) -> PoseModels:
-    """One worker's sessions, built once and reused for every segment it gets."""
-    detectors = []
-    for path, kind, size in files.detectors:
-        runtime, precision = files.runtime(path)
-        session = create_session(Path(path), files.threads, device=files.device, runtime=runtime, precision=precision)
-        if kind == "rtmdet":
-            detectors.append(RTMDetDetector(session, size, files.det_score))
-        elif kind == "picodet":
-            detectors.append(PicoDetDetector(session, size, files.det_score))
-        else:
-            raise ValueError(f"model kind {kind!r} is not a person detector")
-    detector = detectors[0] if len(detectors) == 1 else FusedDetector(detectors)
-    poses = []
-    for path, kind, size in files.poses:
-        if kind not in POSE_WRAPPERS:
-            raise ValueError(f"model kind {kind!r} is not a 2D pose model")
-        batched = kind in BATCHED_KINDS and batch_crops(files.device)
-        runtime, precision = files.runtime(path)
-        session = create_session(Path(path), files.threads, any_batch=batched, unused_outputs=UNUSED_OUTPUTS.get(kind),
-                                 device=files.device, runtime=runtime, precision=precision)
-        poses.append(POSE_WRAPPERS[kind](session, size, files.crop_padding))
-    return PoseModels(detector, poses[0] if len(poses) == 1 else BodyAndFeet(*poses))
 
 
 @dataclass(frozen=True)

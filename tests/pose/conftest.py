@@ -12,7 +12,7 @@ from pipeline.pose.pose2d import Pose2dOptions
 @pytest.fixture(scope="session")
 def default_models(models_dir: Path):
     from pipeline.core.params import load_params, stage_params
-    from pipeline.pose.pose2d import load_pose_models, model_files
+    from pipeline.pose.models.loading import load_pose_models, model_files
     from tests.conftest import PROJECT
 
     params = stage_params(load_params(PROJECT / "params.yaml"), "pose2d")

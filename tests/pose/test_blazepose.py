@@ -142,8 +142,8 @@ def test_on_the_cpu_crops_go_one_per_call_and_on_a_gpu_a_frames_crops_at_once(de
     # activations overflow the core's cache), on five BlazePose crops the same; a GPU wants the batch.
     import onnxruntime
 
+    from pipeline.pose.models.loading import batch_crops
     from pipeline.pose.models.session import CPU, CUDA
-    from pipeline.pose.pose2d import batch_crops
 
     models = default_models[0]  # the stage's loader, with params.yaml's pose2d models
     assert models.pose.body.session.get_inputs()[0].shape[0] == 1

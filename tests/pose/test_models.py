@@ -220,7 +220,7 @@ def test_the_device_picks_cuda_when_onnxruntime_has_it_and_says_how_to_get_it_wh
 def test_the_pose2d_models_refuse_cuda_without_it_before_any_work(monkeypatch, models_dir: Path) -> None:
     import onnxruntime as ort
 
-    from pipeline.pose.pose2d import model_files
+    from pipeline.pose.models.loading import model_files
 
     monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
     monkeypatch.setattr(ort, "get_available_providers", lambda: ["CPUExecutionProvider"])
@@ -237,7 +237,7 @@ def test_the_pose2d_models_refuse_cuda_without_it_before_any_work(monkeypatch, m
 def test_openvino_runs_the_models_as_onnx_runtime_does_in_f32(models_dir: Path) -> None:
     # OpenVINO reads the same ONNX bytes (here BlazePose pruned of its mask, as the stage builds it)
     # and answers the same session calls; in f32 its outputs are ONNX Runtime's to rounding.
-    from pipeline.pose.pose2d import UNUSED_OUTPUTS
+    from pipeline.pose.models.loading import UNUSED_OUTPUTS
 
     rng = np.random.default_rng(0)
     for name, kind in (("tinypose_256x192.onnx", "tinypose"), ("blazepose_full.onnx", "blazepose")):
@@ -277,7 +277,7 @@ def test_openvino_uninstalled_leaves_every_model_in_onnx_runtime(monkeypatch, mo
     import sys
 
     from pipeline.pose.models import session
-    from pipeline.pose.pose2d import load_pose_models, model_files
+    from pipeline.pose.models.loading import load_pose_models, model_files
 
     monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
     monkeypatch.setitem(sys.modules, "openvino", None)  # import openvino now fails, as when not installed
@@ -293,7 +293,7 @@ def test_openvino_uninstalled_leaves_every_model_in_onnx_runtime(monkeypatch, mo
 
 def test_a_runtime_other_than_onnx_runtime_f32_is_an_input_of_every_pose2d_file(models_dir: Path,
                                                                                   monkeypatch) -> None:
-    from pipeline.pose.pose2d import load_pose_models, model_files
+    from pipeline.pose.models.loading import load_pose_models, model_files
 
     monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
     root = Path(__file__).resolve().parents[2]

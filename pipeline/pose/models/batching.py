@@ -1,7 +1,7 @@
 """A crop model exported for one image at a time, made to take a batch: one call per frame.
 
 PP-TinyPose and BlazePose are published with a fixed batch of 1, so a frame with five dancers
-takes five ONNX Runtime calls per model. On a GPU the stage edits them (``pose2d.batch_crops``;
+takes five ONNX Runtime calls per model. On a GPU the stage edits them (``loading.batch_crops``;
 on the CPU one crop per call is faster). The graph edit frees the batch dimension: the inputs'
 and outputs' first dimension becomes symbolic, a ``Reshape`` whose constant target starts with
 the batch (1) copies it instead (-1), and a ``Resize`` to constant ``sizes`` (batch 1 included)
