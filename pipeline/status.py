@@ -7,6 +7,7 @@ from pathlib import Path
 import pyarrow.parquet as pq
 
 from pipeline.core.failures import FAILURES_FILE, read_failures
+from pipeline.core.metrics import headline_figures
 from pipeline.core.paths import (
     AUDIO_FEATURES,
     CATALOG,
@@ -77,4 +78,8 @@ def summarise(root: Path) -> str:
         if rows:
             lines.append(f"failures in {failures.parent.name} ({len(rows)}):")
             lines.extend(f"  {r.item}: {r.error_class}: {r.message}" for r in rows)
+    figures = headline_figures(root)
+    if figures:  # what `dvc metrics show` shows, for those who do not use DVC
+        lines.append("headline metrics (metrics/*.json; the breakdowns in reports/):")
+        lines.extend(f"  {name:28s} {value}" for name, value in figures.items())
     return "\n".join(lines)

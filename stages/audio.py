@@ -1,7 +1,7 @@
 """audio stage: data/segments (audio read from data/raw) -> data/audio/<segment_id>.flac (44.1 kHz,
 EBU R128, lossless) and data/audio_features/<segment_id>.parquet (24 fps on the segment clock;
 see pipeline/music/audio.py).
-Segments without an audio track are listed in metrics/audio.json and left out downstream."""
+Segments without an audio track are listed in reports/audio.json and left out downstream."""
 
 from __future__ import annotations
 
@@ -14,10 +14,11 @@ import pipeline.music.beats
 import pipeline.music.featurefile
 from pipeline.core.errors import InputError
 from pipeline.core.itemstage import WorkItem, run_item_stage
+from pipeline.core.metrics import write_metrics
 from pipeline.core.params import corpus_fps, load_params, stage_params
-from pipeline.core.paths import AUDIO, AUDIO_FEATURES, METRICS, RAW, SEGMENTS
+from pipeline.core.paths import AUDIO, AUDIO_FEATURES, RAW, SEGMENTS
 from pipeline.core.stage import run_stage, setup_logging
-from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta, write_json
+from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta
 from pipeline.ingest.catalog import read_index
 from pipeline.ingest.segmentvideo import SegmentVideo
 from pipeline.music.audio import AudioJob, LoudnessOptions, audio_segment
@@ -61,11 +62,11 @@ def run(root: Path) -> None:
     if limited:
         log.info("true-peak ceiling limited the gain (output quieter than the target, never compressed): %s",
                  ", ".join(limited))
-    write_json(root / METRICS / "audio.json",
-               {"segments_with_audio": len(items), "segments_without_audio": sorted(silent),
-                "loudness_mode": {m: sum(1 for lo in loudness.values() if lo.get("mode") == m)
-                                  for m in sorted({lo.get("mode", "") for lo in loudness.values()})},
-                "peak_limited": limited, "loudness": loudness})
+    write_metrics(root, "audio",
+                  {"segments_with_audio": len(items), "segments_without_audio": sorted(silent),
+                   "loudness_mode": {m: sum(1 for lo in loudness.values() if lo.get("mode") == m)
+                                     for m in sorted({lo.get("mode", "") for lo in loudness.values()})},
+                   "peak_limited": limited, "loudness": loudness})
 
 
 def main() -> int:

@@ -1,5 +1,5 @@
 """clean stage: data/tracks + manifests/tracks -> data/clean/<segment_id>.parquet (one row per clip frame;
-pipeline/annotate/clean.py), metrics/clean.json."""
+pipeline/annotate/clean.py), metrics/clean.json (headline) and reports/clean.json."""
 
 from __future__ import annotations
 
@@ -16,10 +16,11 @@ from pipeline.annotate.clipfile import SCHEMA_VERSION
 from pipeline.annotate.commands import clean_metrics, proposal_options, refuse_invalid_manifests, tracked_segments
 from pipeline.core.errors import InputError
 from pipeline.core.itemstage import WorkItem, run_item_stage
+from pipeline.core.metrics import write_metrics
 from pipeline.core.params import load_params, stage_params
-from pipeline.core.paths import CLEAN, METRICS, TRACK_MANIFESTS, TRACKS
+from pipeline.core.paths import CLEAN, TRACK_MANIFESTS, TRACKS
 from pipeline.core.stage import run_stage, setup_logging
-from pipeline.core.storage import code_fingerprint, fingerprint, read_meta, sha256_file, write_json
+from pipeline.core.storage import code_fingerprint, fingerprint, read_meta, sha256_file
 
 log = logging.getLogger("dance3d.clean")
 UNANNOTATED = ("accept", "skip")
@@ -57,7 +58,7 @@ def run(root: Path) -> None:
         log.info("skipping %d segments without a manifest (clean.unannotated: skip): %s", len(skipped),
                  ", ".join(skipped))
     run_item_stage("clean", items, clean_segment, out_dirs=[root / CLEAN], params=params, light=True)
-    write_json(root / METRICS / "clean.json", clean_metrics(root, skipped))
+    write_metrics(root, "clean", clean_metrics(root, skipped))
 
 
 def main() -> int:

@@ -1,7 +1,7 @@
 """shard stage: data/motion24 + data/audio_features -> data/corpus/{train,val}/shard-NNNNN.parquet,
 data/corpus/groups/{train,val}/ (windows of two or more dancers in one scene),
 data/corpus/README.md (the dataset card with Hugging Face metadata; + durations.png, alignment.png),
-metrics/corpus.json, metrics/durations.csv."""
+metrics/corpus.json (headline), reports/corpus.json, metrics/durations.csv."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """smooth stage: data/pose3d -> data/smooth/<segment_id>.parquet (Hodrick-Prescott trend of every joint
-coordinate, lambda from params), plus per-clip QC in the file metadata and metrics/smooth.json."""
+coordinate, lambda from params), plus per-clip QC in the file metadata and reports/smooth.json."""
 
 from __future__ import annotations
 
@@ -9,10 +9,11 @@ from pathlib import Path
 import pipeline.motion.quality
 import pipeline.motion.smoothing
 from pipeline.core.itemstage import WorkItem, run_item_stage
+from pipeline.core.metrics import write_metrics
 from pipeline.core.params import load_params, stage_params
-from pipeline.core.paths import METRICS, POSE3D, SMOOTH
+from pipeline.core.paths import POSE3D, SMOOTH
 from pipeline.core.stage import run_stage, setup_logging
-from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta, write_json
+from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta
 from pipeline.motion.motionfile import SCHEMA_VERSION
 from pipeline.motion.smoothing import SmoothJob, smooth_segment
 
@@ -33,7 +34,8 @@ def run(root: Path) -> None:
 
 
 def write_motion_metrics(root: Path) -> None:
-    """metrics/smooth.json: frame-weighted means of the per-clip QC over every smoothed segment."""
+    """reports/smooth.json: frame-weighted means of the per-clip QC over every
+    smoothed segment."""
     qcs = [q for f in item_files(root / SMOOTH) for q in read_meta(f).get("clip_qc", {}).values()]
     frames = sum(q["frames"] for q in qcs)
 
@@ -43,7 +45,7 @@ def write_motion_metrics(root: Path) -> None:
     metrics = {"clips": len(qcs), "frames": frames, "mean_acc_before": mean("mean_acc_before"),
                "mean_acc_after": mean("mean_acc_after"), "limb_cv": mean("limb_cv"),
                "interpolated_share": mean("interpolated_share")}
-    write_json(root / METRICS / "smooth.json", metrics)
+    write_metrics(root, "smooth", metrics)
 
 
 def main() -> int:

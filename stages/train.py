@@ -1,12 +1,13 @@
-"""train stage: data/corpus -> models/tsmt.pt, metrics/train.json, metrics/train_loss.csv."""
+"""train stage: data/corpus -> models/tsmt.pt, metrics/train.json (headline), reports/train.json,
+metrics/train_loss.csv."""
 
 from __future__ import annotations
 
-import json
 import sys
 from dataclasses import fields
 from pathlib import Path
 
+from pipeline.core.metrics import write_metrics
 from pipeline.core.params import load_params, stage_params, with_profile
 from pipeline.core.paths import CORPUS, METRICS
 from pipeline.core.stage import run_stage, setup_logging
@@ -26,9 +27,8 @@ def run(root: Path) -> None:
     model, losses = train_tsmt(root / CORPUS, cfg)
     save_model(model, root / "models/tsmt.pt")
     first, last = sum(losses[:20]) / min(20, len(losses)), sum(losses[-20:]) / min(20, len(losses))
-    with atomic_path(root / METRICS / "train.json") as tmp:
-        tmp.write_text(json.dumps({"steps": len(losses), "loss_first": round(first, 4), "loss_last": round(last, 4),
-                                   "loss": [round(v, 4) for v in losses]}, indent=1) + "\n")
+    write_metrics(root, "train", {"steps": len(losses), "loss_first": round(first, 4), "loss_last": round(last, 4),
+                                  "loss": [round(v, 4) for v in losses]})
     with atomic_path(root / METRICS / "train_loss.csv") as tmp:
         tmp.write_text("step,loss\n" + "".join(f"{i},{v:.4f}\n" for i, v in enumerate(losses)))
 

@@ -1,4 +1,5 @@
-"""train_contact stage: models/contact.onnx, metrics/contact.json, metrics/contact_loss.csv.
+"""train_contact stage: models/contact.onnx, metrics/contact.json (headline), reports/contact.json,
+metrics/contact_loss.csv.
 
 ``train_contact.shipped: true`` (the default) takes the contact model that ships with dance3d
 (``pipeline/motion/world/weights/``), trained by the ``full`` profile, with its held-out figures and
@@ -37,7 +38,7 @@ def config_from_params(params: dict):
 
 
 def _write_outputs(root: Path, metrics: dict, losses: list[float]) -> None:
-    write_training_outputs(root / METRICS / "contact.json", metrics, root / METRICS / "contact_loss.csv",
+    write_training_outputs(root, "contact", metrics, root / METRICS / "contact_loss.csv",
                            "train_bce", losses)
 
 

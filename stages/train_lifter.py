@@ -1,4 +1,4 @@
-"""train_lifter stage: models/lifter.onnx, metrics/lifter.json, metrics/lifter_loss.csv.
+"""train_lifter stage: models/lifter.onnx, metrics/lifter.json (headline), reports/lifter.json, metrics/lifter_loss.csv.
 
 ``train_lifter.shipped: true`` (the default) takes the lifter that ships with dance3d
 (``pipeline/motion/lifting/weights/``), trained by the ``full`` profile, with the held-out
@@ -39,12 +39,12 @@ def config_from_params(params: dict):
 
 
 def _write_outputs(root: Path, metrics: dict, losses_mm: list[float]) -> None:
-    write_training_outputs(root / METRICS / "lifter.json", metrics, root / METRICS / "lifter_loss.csv",
+    write_training_outputs(root, "lifter", metrics, root / METRICS / "lifter_loss.csv",
                            "train_mpjpe_mm", losses_mm)
 
 
 def use_shipped(root: Path, shipped: Path = SHIPPED) -> None:
-    """Copy the shipped lifter to models/lifter.onnx and its recorded figures to metrics/."""
+    """Copy the shipped lifter to models/lifter.onnx and its recorded figures to reports/ (headline in metrics/)."""
     meta = copy_shipped(shipped, root / LIFTER)
     metrics = recorded_metrics(meta)
     _write_outputs(root, metrics, [float(x) for x in meta.get("loss_curve_mm", "").split(",") if x])

@@ -71,13 +71,13 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
         clips = read_motion(root / "data/motion24" / f"{seg['segment_id']}.parquet").clips
         assert sum(len(c.frame) for c in clips) >= 0.9 * seg["frames"] / seg["fps"] * 24
         assert all(np.allclose(c.time, c.frame / 24) for c in clips)
-    lifter = json.loads((root / "metrics/lifter.json").read_text())
+    lifter = json.loads((root / "reports/lifter.json").read_text())
     assert lifter["shipped"] and lifter["val_p_mpjpe_mm"] < 60
 
     shards = sorted((root / "data/corpus/train").glob("shard-*.parquet")) + sorted(
         (root / "data/corpus/val").glob("shard-*.parquet"))
     windows = sum(pq.read_metadata(p).num_rows for p in shards)
-    corpus = json.loads((root / "metrics/corpus.json").read_text())
+    corpus = json.loads((root / "reports/corpus.json").read_text())
     assert windows == corpus["windows_train"] + corpus["windows_val"] > 0
     assert corpus["clips_without_audio"] == 2  # the silent solo clip's two segments
     assert "## Statistics" in (root / "data/corpus/README.md").read_text()
@@ -115,11 +115,21 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     beats = pq.read_table(shards[0], columns=["beat", "beat_frames", "motion_beat_frames"]).to_pylist()[0]
     assert beats["beat_frames"] == [i for i, flag in enumerate(beats["beat"]) if flag]  # flags and frames agree
     assert beats["motion_beat_frames"]
-    assert (root / "models/tsmt.pt").exists() and json.loads((root / "metrics/train.json").read_text())["steps"] == 10
+    assert (root / "models/tsmt.pt").exists() and json.loads((root / "reports/train.json").read_text())["steps"] == 10
+    # dvc metrics show at a glance: the headline figures only, a table a terminal shows; the breakdowns
+    # in reports/ beside them.
     metrics = _dvc(root, "metrics", "show")
-    assert metrics.returncode == 0 and "val_mpjpe_mm" in metrics.stdout and "windows_train" in metrics.stdout
-    assert "failed_share" in metrics.stdout
-    assert json.loads((root / "metrics/failures_pose2d.json").read_text())["failed"] == 0
+    assert metrics.returncode == 0 and "lifter_p_mpjpe_mm" in metrics.stdout and "corpus_windows" in metrics.stdout
+    assert "failed_share" in metrics.stdout and max(len(line) for line in metrics.stdout.splitlines()) < 250
+    shown = json.loads(_dvc(root, "metrics", "show", "--json").stdout)
+    keys = [key for run in shown.values() for files in run["data"].values() for key in files["data"]]
+    assert 10 <= len(keys) <= 25, keys
+    assert json.loads((root / "reports/failures_pose2d.json").read_text())["failed"] == 0
+    assert corpus["failures"]["failed"] == 0 and set(json.loads((root / "metrics/corpus.json").read_text())) >= {
+        "corpus_minutes", "corpus_windows", "beat_f1", "beat_f1_shuffled", "failed_share"}
+    status = subprocess.run([str(Path(sys.executable).parent / "dance3d"), "status"], cwd=root, capture_output=True,
+                            text=True)
+    assert "lifter_p_mpjpe_mm" in status.stdout and "corpus_windows" in status.stdout  # the same figures, no DVC
     plots = _dvc(root, "plots", "show", "-o", str(tmp_path / "plots"))
     assert plots.returncode == 0, plots.stderr[-2000:]
     assert (tmp_path / "plots/index.html").exists()

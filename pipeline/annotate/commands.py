@@ -74,7 +74,7 @@ def refuse_invalid_manifests(root: Path, min_clip_seconds: float) -> None:
 
 
 def clean_metrics(root: Path, skipped: list[str]) -> dict:
-    """metrics/clean.json: every segment's current clean output (new and up to date) summed."""
+    """reports/clean.json (headline in metrics/): every segment's current clean output (new and up to date) summed."""
     from pipeline.annotate.clipfile import read_clean
     from pipeline.core.paths import CLEAN
     from pipeline.core.storage import item_files

@@ -35,7 +35,8 @@ def write_failures(folder: Path, stage: str, failures: list[Failure], total: int
     """Write (or clear) the stage's failure table; always written so stale rows vanish.
 
     With ``total`` (the stage's item count) a summary also goes to
-    ``metrics/failures_<stage>.json`` of the project (``folder`` is ``<project>/data/<stage>``).
+    ``reports/failures_<stage>.json`` of the project (``folder`` is ``<project>/data/<stage>``); the
+    shard stage sums them into the corpus's headline ``failed_items`` and ``failed_share``.
     """
     columns = ["item", "stage", "error_class", "message", "time"]
     rows = [asdict(f) for f in sorted(failures, key=lambda f: f.item)]
@@ -48,7 +49,7 @@ def write_failures(folder: Path, stage: str, failures: list[Failure], total: int
         by_class: dict[str, int] = {}
         for f in failures:
             by_class[f.error_class] = by_class.get(f.error_class, 0) + 1
-        write_json(Path(folder).parent.parent / "metrics" / f"failures_{stage}.json",
+        write_json(Path(folder).parent.parent / "reports" / f"failures_{stage}.json",
                    {"items": total, "failed": len(failures),
                     "failed_share": round(len(failures) / total, 4) if total else 0.0, "by_error_class": by_class})
     return path
@@ -68,3 +69,19 @@ def check_failure_ratio(stage: str, failed: int, total: int, max_ratio: float) -
             f"{stage}: {failed} of {total} items failed ({failed / total:.0%} > max_failure_ratio "
             f"{max_ratio:.0%}); see the stage's {FAILURES_FILE}"
         )
+
+
+def failure_totals(root: Path) -> dict:
+    """Every stage's failure report summed: items, failed, failed share, and the stages with failures."""
+    import json
+
+    items = failed = 0
+    stages = {}
+    for path in sorted((Path(root) / "reports").glob("failures_*.json")):
+        report = json.loads(path.read_text())
+        items += int(report.get("items", 0))
+        failed += int(report.get("failed", 0))
+        if report.get("failed"):
+            stages[path.stem.removeprefix("failures_")] = report["failed"]
+    return {"items": items, "failed": failed, "failed_share": round(failed / items, 4) if items else 0.0,
+            "stages_with_failures": stages}

@@ -5,15 +5,16 @@ The shard stage calls these; the window contract (schema, split rule) is ``windo
 
 from __future__ import annotations
 
-import json
 import shutil
 from pathlib import Path
 
 import numpy as np
 
+from pipeline.core.failures import failure_totals
 from pipeline.core.ids import video_id_of_segment
+from pipeline.core.metrics import read_report, write_metrics
 from pipeline.core.paths import AUDIO_FEATURES, CLEAN, CORPUS, METRICS, MOTION24, RAW, SEGMENTS, TRACKS, WORLD
-from pipeline.core.storage import atomic_path, item_files, read_meta, write_json, write_parquet
+from pipeline.core.storage import atomic_path, item_files, read_meta, write_parquet
 from pipeline.corpus.card import (
     alignment_png,
     channel_stats,
@@ -312,8 +313,7 @@ def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, para
     group_counts["dancers"] = len({c for g in groups or [] for c in g.meta["clip_ids"]})
     with atomic_path(root / CORPUS / "README.md") as tmp:
         splits = [s for s, n in (("train", totals["windows_train"]), ("val", totals["windows_val"])) if n]
-        contact_file = root / METRICS / "contact.json"
-        contact = json.loads(contact_file.read_text()) if contact_file.exists() else None
+        contact = read_report(root, "contact")
         tmp.write_text(hf_front_matter(splits, [s for s in ("train", "val") if group_counts[s]])
                        + render_card(stats, ledger, card_params, totals, alignment, style_stats(metas), contact,
                                      group_counts if groups else None))
@@ -332,5 +332,6 @@ def write_card_and_metrics(root: Path, windows: list[Window], counts: dict, para
                "beat_alignment": alignment, "grounding": grounding_summary(counts.get("grounding", [])),
                "group_windows": {"train": group_counts["train"], "val": group_counts["val"],
                                  "dancers_median": float(np.median([g.meta["dancers"] for g in groups]))
-                                 if groups else 0.0}}
-    write_json(root / METRICS / "corpus.json", metrics)
+                                 if groups else 0.0},
+               "failures": failure_totals(root)}
+    write_metrics(root, "corpus", metrics)

@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from pipeline.core.errors import InputError
-from pipeline.core.storage import atomic_path, write_json
+from pipeline.core.storage import atomic_path
 
 SHIPPED_LIFTER = Path(__file__).resolve().parent / "lifting/weights/lifter_dance3d.onnx"
 SHIPPED_CONTACT = Path(__file__).resolve().parent / "world/weights/contact_dance3d.onnx"
@@ -39,10 +39,13 @@ def mocap_root(root: Path, params: Mapping, section: str) -> Path:
     return path
 
 
-def write_training_outputs(metrics_path: Path, metrics: dict, curve_path: Path, column: str,
+def write_training_outputs(root: Path, name: str, metrics: dict, curve_path: Path, column: str,
                            curve: list[float]) -> None:
-    """The figures (JSON, for ``dvc metrics``) and at most ~200 points of the loss curve (CSV, for ``dvc plots``)."""
-    write_json(metrics_path, metrics)
+    """The figures (``reports/<name>.json``, the headline in ``metrics/``) and at most ~200 points of
+    the loss curve (CSV, for ``dvc plots``)."""
+    from pipeline.core.metrics import write_metrics
+
+    write_metrics(root, name, metrics)
     every = max(1, len(curve) // 200)
     with atomic_path(curve_path) as tmp:
         tmp.write_text(f"step,{column}\n" + "".join(f"{i},{value:.4f}\n" for i, value in enumerate(curve)

@@ -149,7 +149,7 @@ def test_short_gaps_are_filled_long_gaps_split_short_clips_drop(project: Path) -
     assert sorted(clip.frame[clip.interpolated]) == [50, 51, 52, 53, 54]
     box = dict(zip(clip.frame.tolist(), clip.box))
     assert np.allclose(box[52], box[49] + (box[55] - box[49]) * 3 / 6, atol=1e-3)
-    metrics = json.loads((project / "metrics/clean.json").read_text())
+    metrics = json.loads((project / "reports/clean.json").read_text())
     assert metrics["dropped_short_clips"] == 2  # 180-199 (0.8 s) and 230-239
 
 

@@ -148,7 +148,7 @@ def test_a_feed_that_fails_is_one_failure_and_keeps_what_was_found(project: Path
     discover.run(project)
     assert len(read_discovered(project / "data/catalog")[f"{channel.url}/feed.xml"]) == 3
     import json
-    failures = json.loads((project / "metrics/failures_discover.json").read_text())
+    failures = json.loads((project / "reports/failures_discover.json").read_text())
     assert failures["failed"] == 1
 
 

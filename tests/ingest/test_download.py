@@ -71,7 +71,7 @@ def test_missing_file_and_malformed_url_are_failed_rows_not_crashes(project: Pat
         "sources.csv:4: url 'htp:/nowhere' has unsupported scheme 'htp' (use http, https or file)")
     failures = [asdict(f) for f in read_failures(project / "data/raw")]
     assert [f["item"] for f in failures] == ["manifests/sources.csv:3", "manifests/sources.csv:4"]
-    summary = json.loads((project / "metrics/failures_download.json").read_text())
+    summary = json.loads((project / "reports/failures_download.json").read_text())
     assert summary == {"items": 3, "failed": 2, "failed_share": 0.6667,
                        "by_error_class": {"not_found": 1, "invalid_url": 1}}
 

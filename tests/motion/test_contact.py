@@ -193,7 +193,7 @@ def test_the_train_contact_stage_uses_the_shipped_model_by_default(tmp_path: Pat
     (tmp_path / "params.yaml").write_text((PROJECT / "params.yaml").read_text())
     run(tmp_path)
     assert (tmp_path / "models/contact.onnx").read_bytes() == SHIPPED.read_bytes()
-    metrics = json.loads((tmp_path / "metrics/contact.json").read_text())
+    metrics = json.loads((tmp_path / "reports/contact.json").read_text())
     assert metrics["shipped"] is True and 0 < metrics["contact_f1"] <= 1
     assert (tmp_path / "metrics/contact_loss.csv").read_text().startswith("step,train_bce\n0,")
 

@@ -226,7 +226,7 @@ def test_the_train_lifter_stage_uses_the_shipped_lifter_by_default(tmp_path: Pat
     (tmp_path / "params.yaml").write_text((PROJECT / "params.yaml").read_text())
     run(tmp_path)  # no motion capture, no training
     assert (tmp_path / "models/lifter.onnx").read_bytes() == SHIPPED.read_bytes()
-    metrics = json.loads((tmp_path / "metrics/lifter.json").read_text())
+    metrics = json.loads((tmp_path / "reports/lifter.json").read_text())
     assert metrics["shipped"] is True and metrics["val_p_mpjpe_mm"] > 0
     assert (tmp_path / "metrics/lifter_loss.csv").read_text().startswith("step,train_mpjpe_mm\n0,")
 
@@ -267,7 +267,7 @@ def test_the_train_lifter_stage_trains_a_profile_and_records_what_made_it(tmp_pa
                                   sources=["perfume", "dancedb_ucy"], eval_seconds=5)
     (tmp_path / "params.yaml").write_text(yaml.safe_dump(params))
     run(tmp_path)
-    metrics = json.loads((tmp_path / "metrics/lifter.json").read_text())
+    metrics = json.loads((tmp_path / "reports/lifter.json").read_text())
     assert metrics["steps"] == 30 and metrics["val_p_mpjpe_mm"] > 0 and "shipped" not in metrics
     assert set(metrics["heldout"]["sources"]) == {"perfume", "dancedb_ucy"}
     meta = ort.InferenceSession(str(tmp_path / "models/lifter.onnx")).get_modelmeta().custom_metadata_map
