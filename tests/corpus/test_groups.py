@@ -82,3 +82,8 @@ def test_group_shards_load_as_the_groups_config_of_the_card(groups: list, tmp_pa
     world = np.array(rows[0]["world_joints"], np.float32)
     assert world.shape == (2, W, 17, 3) and np.allclose(world, groups[0].world, atol=1e-6)
     assert "world_joints" in datasets.load_dataset(str(folder), cache_dir=str(tmp_path / "hf2"))["train"].column_names
+    # The loading tutorial asks for the configs first: here `groups` is one of them ...
+    assert "groups" in datasets.get_dataset_config_names(str(folder))
+    # ... and on a corpus of solo dancers it is not, so the tutorial's check takes its other branch.
+    (folder / "README.md").write_text(hf_front_matter(["train", "val"], []) + "# dance3d corpus\n")
+    assert datasets.get_dataset_config_names(str(folder)) == ["default", "smpl"]
