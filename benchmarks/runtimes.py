@@ -26,7 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.core.storage import write_json
-from pipeline.pose.models.registry import get_spec, resolve_model
+from pipeline.pose.models.fetch import resolve_model
+from pipeline.pose.models.registry import get_spec
 from pipeline.pose.models.session import create_session, openvino_available
 
 CONFIGS = (("onnxruntime", "f32"), ("openvino", "f32"), ("openvino", "bf16"))

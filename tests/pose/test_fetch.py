@@ -109,8 +109,8 @@ def test_a_wheel_with_the_wrong_checksum_is_refused(tmp_path: Path, monkeypatch)
 def test_tinypose_ships_in_the_package_with_its_licence_and_is_found_without_any_models_folder(
         tmp_path: Path, monkeypatch) -> None:
     from pipeline.core.storage import sha256_file
-    from pipeline.pose.models.fetch import model_outputs
-    from pipeline.pose.models.registry import SHIPPED, get_spec, resolve_model
+    from pipeline.pose.models.fetch import model_outputs, resolve_model
+    from pipeline.pose.models.registry import SHIPPED, get_spec
 
     empty = tmp_path / "no_models"
     empty.mkdir()

@@ -13,7 +13,7 @@ import pytest
 from onnx import TensorProto, helper, numpy_helper
 
 from pipeline.core.errors import InputError, ModelMissingError
-from pipeline.pose.models import registry
+from pipeline.pose.models import fetch
 from pipeline.pose.models.detector import Detections, RTMDetDetector, largest
 from pipeline.pose.models.pose import (
     COCO17,
@@ -124,7 +124,7 @@ def test_decode_simcc_takes_the_smaller_maximum() -> None:
 def test_missing_model_without_download_names_the_file_and_where_to_put_it(tmp_path, monkeypatch) -> None:
     monkeypatch.setenv("DANCE3D_MODELS", str(tmp_path / "empty"))
     with pytest.raises(ModelMissingError) as err:
-        registry.resolve_model("movenet-lightning", tmp_path)
+        fetch.resolve_model("movenet-lightning", tmp_path)
     message = str(err.value)
     assert "\n" not in message
     assert "movenet_singlepose_lightning_4_dequant.onnx not found; put it in" in message
@@ -137,7 +137,7 @@ def test_failed_download_is_one_clear_line(tmp_path, monkeypatch) -> None:
     with pytest.raises(ModelMissingError, match=r"rtmdet_nano_person_end2end\.onnx not found in .* download of "
                                                 r"http://127\.0\.0\.1:9/raw\.githubusercontent\.com/.* failed"
                                                 r".* by hand") as err:
-        registry.resolve_model("rtmdet-nano-person", tmp_path)
+        fetch.resolve_model("rtmdet-nano-person", tmp_path)
     assert "\n" not in str(err.value)
     assert not (tmp_path / "models" / "rtmdet_nano_person_end2end.onnx").exists()
 
@@ -151,13 +151,13 @@ def test_download_with_a_wrong_checksum_is_refused(tmp_path, monkeypatch) -> Non
     monkeypatch.setitem(fetch.ROUTES, "rtmdet-nano-person", (route,))
     monkeypatch.setenv("DANCE3D_MODELS", str(tmp_path / "empty"))
     with pytest.raises(ModelMissingError, match="checksum mismatch"):
-        registry.resolve_model("rtmdet-nano-person", tmp_path)
+        fetch.resolve_model("rtmdet-nano-person", tmp_path)
     assert not (tmp_path / "models" / "rtmdet_nano_person_end2end.onnx").exists()
 
 
 def test_models_are_found_through_the_environment(models_dir: Path, tmp_path: Path, monkeypatch) -> None:
     monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
-    assert registry.resolve_model("rtmdet-nano-person", tmp_path) == models_dir / "rtmdet_nano_person_end2end.onnx"
+    assert fetch.resolve_model("rtmdet-nano-person", tmp_path) == models_dir / "rtmdet_nano_person_end2end.onnx"
 
 
 def test_heatmap_peaks_are_refined_a_quarter_pixel_toward_the_larger_neighbour() -> None:

@@ -33,6 +33,7 @@ import numpy as np
 
 from pipeline.core.errors import ModelMissingError
 from pipeline.core.storage import atomic_path
+from pipeline.pose.models.registry import get_spec, model_dirs, search_dirs
 
 log = logging.getLogger(__name__)
 
@@ -271,13 +272,9 @@ def fetch_model(name: str, folder: Path, *, force: bool = False, convert: bool =
     """Fetch model ``name`` into ``folder`` (its registry file name) and verify it by its outputs.
 
     ``convert=False`` only takes routes that need no conversion (the quick automatic path)."""
-    from pipeline.pose.models.registry import get_spec
-
     spec = get_spec(name)
     target = Path(folder) / spec.file
     if not force:
-        from pipeline.pose.models.registry import search_dirs
-
         for present in [target] + [d / spec.file for d in search_dirs(spec, Path(folder).parent)]:
             if present.is_file():
                 verify_outputs(name, present)
@@ -298,3 +295,27 @@ def fetch_model(name: str, folder: Path, *, force: bool = False, convert: bool =
             target.unlink(missing_ok=True)
             errors.append(str(exc))
     raise FetchError(f"model {name}: every route failed:\n  " + "\n  ".join(errors))
+
+
+def resolve_model(name: str, project_root: Path | None = None, *, allow_download: bool = True) -> Path:
+    """The path of model ``name``'s file, downloading it (checksum verified) when absent."""
+    spec = get_spec(name)
+    dirs = model_dirs(project_root)
+    for folder in search_dirs(spec, project_root):
+        candidate = folder / spec.file
+        if candidate.is_file():
+            return candidate
+    target = dirs[-1] / spec.file
+    where = " or ".join(str(d) for d in dirs)
+    routes = ROUTES.get(name, ())
+    if not routes:
+        raise ModelMissingError(f"model {name}: {spec.file} not found; put it in {where} ({spec.note})")
+    if not (allow_download and any(not r.convert for r in routes)):
+        raise ModelMissingError(f"model {name}: {spec.file} not found; put it in {where}, "
+                                f"or run `dance3d models fetch {name}` ({spec.note})")
+    try:
+        return fetch_model(name, target.parent, convert=False)
+    except FetchError as exc:
+        reason = " ".join(str(exc).split())
+        raise ModelMissingError(f"model {name}: {spec.file} not found in {where} and {reason}; "
+                                f"put the file there by hand") from None

@@ -46,7 +46,8 @@ def model_names(value: str | list[str]) -> list[str]:
 def model_files(root: Path, params: dict) -> tuple[ModelFiles, dict[str, str]]:
     """Resolve every model in the main process, so a missing one is one clear error up front."""
     from pipeline.core.storage import sha256_file
-    from pipeline.pose.models.registry import get_spec, resolve_model
+    from pipeline.pose.models.fetch import resolve_model
+    from pipeline.pose.models.registry import get_spec
 
     dets = [get_spec(name) for name in model_names(params.get("detector", DEFAULT_DETECTOR))]
     poses = [get_spec(name) for name in model_names(params.get("pose_model", DEFAULT_POSE_MODEL))]

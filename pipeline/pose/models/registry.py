@@ -2,10 +2,10 @@
 
 Lookup order for a model file: ``$DANCE3D_MODELS``, the project's ``models/`` folder, the
 copy shipped in the package (``weights/``: PP-TinyPose, which has no download), then a
-download from its route (``pipeline.pose.models.fetch``: sha256 checked, outputs
-verified). Models whose route needs a conversion are fetched by ``dance3d models fetch``,
-never silently during a stage. A model that cannot be found gives one line saying which
-file to put where.
+download from its route (``fetch.resolve_model``: sha256 checked, outputs verified). This
+module is the table and the places to look; fetching sits above it. Models whose route needs
+a conversion are fetched by ``dance3d models fetch``, never silently during a stage. A model
+that cannot be found gives one line saying which file to put where.
 """
 
 from __future__ import annotations
@@ -100,29 +100,3 @@ def get_spec(name: str) -> ModelSpec:
     if name not in REGISTRY:
         raise ModelMissingError(f"unknown model {name!r}; registered: {', '.join(sorted(REGISTRY))}")
     return REGISTRY[name]
-
-
-def resolve_model(name: str, project_root: Path | None = None, *, allow_download: bool = True) -> Path:
-    """The path of model ``name``'s file, downloading it (checksum verified) when absent."""
-    spec = get_spec(name)
-    dirs = model_dirs(project_root)
-    for folder in search_dirs(spec, project_root):
-        candidate = folder / spec.file
-        if candidate.is_file():
-            return candidate
-    target = dirs[-1] / spec.file
-    where = " or ".join(str(d) for d in dirs)
-    from pipeline.pose.models.fetch import ROUTES, FetchError, fetch_model
-
-    routes = ROUTES.get(name, ())
-    if not routes:
-        raise ModelMissingError(f"model {name}: {spec.file} not found; put it in {where} ({spec.note})")
-    if not (allow_download and any(not r.convert for r in routes)):
-        raise ModelMissingError(f"model {name}: {spec.file} not found; put it in {where}, "
-                                f"or run `dance3d models fetch {name}` ({spec.note})")
-    try:
-        return fetch_model(name, target.parent, convert=False)
-    except FetchError as exc:
-        reason = " ".join(str(exc).split())
-        raise ModelMissingError(f"model {name}: {spec.file} not found in {where} and {reason}; "
-                                f"put the file there by hand") from None
