@@ -16,6 +16,7 @@ import pipeline.motion.world.gravity
 import pipeline.motion.world.grounding
 import pipeline.motion.world.rotations
 import pipeline.motion.world.scene
+import pipeline.motion.world.segment
 import pipeline.motion.world.trajectory
 import pipeline.motion.world.worldfile
 from pipeline.core.itemstage import WorkItem, run_item_stage
@@ -24,13 +25,14 @@ from pipeline.core.paths import MOTION24, WORLD
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta
 from pipeline.motion.world.contact import HOLD_PROBABILITY, MIN_PLANTED_FRAMES, PLANTED_PROBABILITY
-from pipeline.motion.world.grounding import GroundJob, ground_segment
+from pipeline.motion.world.segment import GroundJob, ground_segment
 from pipeline.motion.world.worldfile import SCHEMA_VERSION
 
 CODE = code_fingerprint(pipeline.motion.world.grounding, pipeline.motion.world.contact, pipeline.motion.world.gravity,
                         pipeline.motion.world.trajectory, pipeline.motion.world.rotations,
                         pipeline.motion.world.worldfile, pipeline.motion.world.scene, pipeline.motion.world.bones,
-                        pipeline.motion.smpl.retarget, pipeline.motion.smpl.kinematics, pipeline.motion.smpl.skeleton)
+                        pipeline.motion.world.segment, pipeline.motion.smpl.retarget, pipeline.motion.smpl.kinematics,
+                        pipeline.motion.smpl.skeleton)
 
 
 def run(root: Path) -> None:

@@ -13,7 +13,6 @@ foot point's 5th percentile and contact judged at the ankles (``contact.foot_con
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -135,37 +134,3 @@ def ground_motion(clip, fps: float, **rules) -> GroundedClip:
     """``ground_clip`` on a motion file's clip (``motionfile.MotionClip``), with all it carries;
     ``rules``: ``ground_clip``'s contact thresholds."""
     return ground_clip(clip.joints, clip.root, fps, clip.feet, clip.contact, feet_rays=clip.feet_rays, **rules)
-
-
-# --- the ground stage's worker -----------------------------------------------------------
-
-@dataclass(frozen=True)
-class GroundJob:
-    motion24: Path
-    out: Path
-    contact_threshold: float  # a point is planted above this probability ...
-    min_contact_frames: int   # ... for at least this many frames in a row ...
-    contact_hold: float       # ... and stays planted while above this one
-    params: dict
-    inputs: dict
-    fingerprint: str
-
-
-def ground_segment(job: GroundJob) -> dict:
-    """Ground every clip of a segment's 24 fps motion in one scene (``scene.ground_scene``);
-    writes the segment's world file."""
-    from pipeline.motion.motionfile import read_motion
-    from pipeline.motion.world.scene import ground_scene
-    from pipeline.motion.world.worldfile import world_clip, write_world
-
-    motion = read_motion(job.motion24)
-    scene = ground_scene(motion.clips, motion.fps, threshold=job.contact_threshold,
-                         min_frames=job.min_contact_frames, hold=job.contact_hold)
-    clips = [world_clip(clip.clip_id, clip.track_id, clip.frame, clip.time, grounded, scale)
-             for clip, grounded, scale in zip(motion.clips, scene.clips, scene.scales)]
-    segment = {k: motion.meta.get(k) for k in ("segment_id", "fps", "source_fps", "width", "height")}
-    segment["scene"] = {"pitch_deg": round(scene.frame.camera.pitch_deg, 2),
-                        "roll_deg": round(scene.frame.camera.roll_deg, 2),
-                        "shared_floor": scene.shared, "clips": len(clips)}
-    write_world(job.out, clips, segment, fingerprint=job.fingerprint, params=job.params, inputs=job.inputs)
-    return {"clips": len(clips), "learned": sum(c.planted is not None for c in clips)}
