@@ -17,12 +17,12 @@ from pathlib import Path
 from pipeline.core.params import load_params, stage_params, with_profile
 from pipeline.core.paths import LIFTER, METRICS
 from pipeline.core.stage import run_stage, setup_logging
+from pipeline.motion.lifting.profile import train_profile
 from pipeline.motion.shipped import (
     SHIPPED_LIFTER,
     copy_shipped,
     mocap_root,
     recorded_metrics,
-    train_profile,
     write_training_outputs,
 )
 from pipeline.motion.shipped import config_from_params as shipped_config
