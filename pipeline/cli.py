@@ -395,7 +395,7 @@ def _eval(root: Path, args: argparse.Namespace) -> int:
 
             result = evaluate(capture_clips(args.mocap, args.seconds) if args.mocap else world_clips(root))
         elif args.what == "segments":
-            from pipeline.ingest.propose import evaluate_project, format_table
+            from pipeline.pose.propose import evaluate_project, format_table
 
             result = evaluate_project(root)
         else:

@@ -1,6 +1,6 @@
 """propose_segments stage: data/raw -> data/segment_proposals/<video_id>.parquet + segments.csv.
 
-Where each downloaded video seems to hold dance (pipeline/ingest/propose.py): shots, music,
+Where each downloaded video seems to hold dance (pipeline/pose/propose.py): shots, music,
 people moving. Proposals never touch annotations/segments.csv: the trim stage takes them for
 videos without human rows when ``trim.unannotated: proposals``, and the review page's trim
 mode shows them to the annotator.
@@ -13,19 +13,19 @@ import logging
 import sys
 from pathlib import Path
 
-import pipeline.ingest.propose
+import pipeline.pose.propose
 from pipeline.core.itemstage import WorkItem, run_item_stage
 from pipeline.core.params import load_params, stage_params
 from pipeline.core.paths import RAW, SEGMENT_PROPOSALS
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint, item_files
 from pipeline.ingest.catalog import read_ledger
-from pipeline.ingest.propose import SCHEMA_VERSION, SUMMARY, ProposeJob, ProposeOptions, propose_video, write_summary
 from pipeline.pose.models.loading import load_pose_models, model_files, model_names
 from pipeline.pose.pose2d import Pose2dOptions
+from pipeline.pose.propose import SCHEMA_VERSION, SUMMARY, ProposeJob, ProposeOptions, propose_video, write_summary
 
 log = logging.getLogger("dance3d.propose_segments")
-CODE = code_fingerprint(pipeline.ingest.propose)
+CODE = code_fingerprint(pipeline.pose.propose)
 
 
 def run(root: Path) -> None:

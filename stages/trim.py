@@ -20,8 +20,9 @@ from pipeline.core.paths import ANNOTATIONS, RAW, SEGMENT_PROPOSALS, SEGMENTS
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint
 from pipeline.ingest.catalog import INDEX, INDEX_VERSION, read_index, read_ledger, write_index
-from pipeline.ingest.segments import plan_segments, proposals_by_video, remove_segment_copies
+from pipeline.ingest.segments import plan_segments, remove_segment_copies
 from pipeline.ingest.trim import PlanJob, TrimOptions, plan_job
+from pipeline.pose.proposed import proposals_by_video
 
 log = logging.getLogger("dance3d.trim")
 CODE = code_fingerprint(pipeline.ingest.trim, pipeline.ingest.segmentvideo, pipeline.ingest.media)

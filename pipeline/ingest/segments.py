@@ -146,19 +146,6 @@ def replace_video_rows(text: str, video_id: str, rows: list[tuple[float, float, 
     return "".join(out), [at + 1 + k for k in range(len(new))]
 
 
-def proposals_by_video(folder: Path) -> dict[str, list[tuple[float, float, str]]]:
-    """The propose_segments stage's proposals by video (start, end, why), as the trim stage takes
-    them; none for a video it has not seen."""
-    from pipeline.core.storage import item_files
-    from pipeline.ingest.propose import read_proposals
-
-    out = {}
-    for path in item_files(folder):
-        found = read_proposals(path)
-        out[found["video_id"]] = [(s["start"], s["end"], f"proposed: {s['reason']}") for s in found["segments"]]
-    return out
-
-
 def remove_segment_copies(seg_dir: Path) -> int:
     """Index version 1 wrote an mp4 and a wav per segment; views need neither. How many went."""
     copies = [p for pattern in ("*.mp4", "*.wav") for p in seg_dir.glob(pattern)] if seg_dir.exists() else []

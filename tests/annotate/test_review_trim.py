@@ -13,7 +13,7 @@ import pytest
 
 from pipeline.annotate.proposals import ProposalOptions
 from pipeline.annotate.review.server import ReviewApp, serve
-from pipeline.ingest.propose import Proposal, Proposals, ProposeOptions, Shot, Timeline, write_proposals
+from pipeline.pose.propose import Proposal, Proposals, ProposeOptions, Shot, Timeline, write_proposals
 from stages import download
 from tests.annotate.test_review import _chromium, call, open_page
 from tests.conftest import PROJECT, make_test_video
