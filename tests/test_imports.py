@@ -1,0 +1,84 @@
+"""The house's floors: no import loops in pipeline/ and no floor importing one above it.
+
+The graph counts every import of a pipeline module, at the top of a file or inside a function (a
+function-level import hides a loop from Python, not from the reader), and is built from the
+source with ``ast``: nothing is imported to build it.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+PIPELINE = Path(__file__).resolve().parents[1] / "pipeline"
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(PIPELINE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def import_graph() -> dict[str, set[str]]:
+    modules = {module_name(p): p for p in PIPELINE.rglob("*.py")}
+    graph: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        targets = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("pipeline"):
+                for alias in node.names:  # `from pipeline.x import y` names module x.y when y is one
+                    child = f"{node.module}.{alias.name}"
+                    targets.add(child if child in modules else node.module)
+            elif isinstance(node, ast.Import):
+                targets.update(a.name for a in node.names if a.name.startswith("pipeline"))
+        graph[name] = {t for t in targets if t in modules and t != name}
+    return graph
+
+
+def loops(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components with more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    found: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in sorted(graph[v]):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_the_loop_finder_finds_a_loop_through_three_modules() -> None:
+    assert loops({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert loops({"a": {"b"}, "b": set()}) == []
+
+
+def test_pipeline_has_no_import_loops() -> None:
+    assert loops(import_graph()) == []
+
+
+def test_the_ingest_floor_imports_nothing_above_it() -> None:
+    # ingest (download, trim, media) sits on core alone; segment proposal, which detects people, is
+    # above the pose floor (pipeline/pose/propose.py).
+    graph = import_graph()
+    uphill = {m: sorted(t for t in targets if not t.startswith(("pipeline.core", "pipeline.ingest")))
+              for m, targets in graph.items() if m.startswith("pipeline.ingest")}
+    assert {m: t for m, t in uphill.items() if t} == {}
