@@ -6,6 +6,7 @@ import argparse
 import importlib
 import os
 import sys
+import warnings
 from pathlib import Path
 
 from pipeline.core.errors import Dance3dError, InputError
@@ -53,6 +54,8 @@ def _parser() -> argparse.ArgumentParser:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--root", type=Path, default=Path.cwd(),
                         help="project root holding params.yaml (default: the current folder)")
+    parser.add_argument("--debug", action="store_true",
+                        help="show a failing command's traceback (also DANCE3D_DEBUG=1)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     run = sub.add_parser("run", help="run one pipeline stage outside DVC",
                          description="Run one stage on the project in --root, as `dvc repro` would.")
@@ -408,7 +411,7 @@ def _eval(root: Path, args: argparse.Namespace) -> int:
                 return 2
             result = evaluate_files(pairs)
     except Dance3dError as exc:
-        print(f"dance3d: {exc}", file=sys.stderr)
+        _say(exc)
         return 2
     print(format_table(result))
     if args.out:
@@ -467,13 +470,56 @@ def _fetch_models(root: Path, args: argparse.Namespace) -> int:
             path = fetch_model(name, folder, force=args.force)
             print(f"{name}: {path} (verified by its outputs)")
         except Dance3dError as exc:
-            print(f"dance3d: {exc}", file=sys.stderr)
+            _say(exc)
             failed += 1
     return 2 if failed else 0
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The `dance3d` command. Every error a command meets ends here as one line naming what is wrong
+    (the file and line where there is one) and a non-zero exit; ``--debug`` or DANCE3D_DEBUG=1 shows
+    the traceback instead. Library warnings are kept from the terminal unless debugging."""
     args = _parser().parse_args(argv)
+    debug = args.debug or os.environ.get("DANCE3D_DEBUG") == "1"
+    if debug:
+        os.environ["DANCE3D_DEBUG"] = "1"  # the handlers that go on after an error stop instead
+    try:
+        with warnings.catch_warnings():
+            if not debug:
+                warnings.simplefilter("ignore")
+            return _dispatch(args)
+    except KeyboardInterrupt:
+        print(f"dance3d {args.command}: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: BLE001 -- the one place a command's errors become a sentence
+        if debug:
+            raise
+        print(f"dance3d {args.command}: {one_line(exc)}", file=sys.stderr)
+        return 2 if isinstance(exc, Dance3dError) else 1
+
+
+def one_line(exc: BaseException) -> str:
+    """An error as one line: dance3d's own say the file, line and reason; a library's are named by
+    the file they were about, where they say it, with a pointer to --debug."""
+    if isinstance(exc, Dance3dError):
+        return " ".join(str(exc).split())
+    if isinstance(exc, FileNotFoundError) and exc.filename:
+        return f"{exc.filename}: no such file or folder"
+    if isinstance(exc, (IsADirectoryError, NotADirectoryError, PermissionError)) and exc.filename:
+        return f"{exc.filename}: {exc.strerror}"
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return f"{text} ({type(exc).__name__}; --debug shows where)"
+
+
+def _say(exc: Dance3dError) -> None:
+    """A handler that goes on after an error (the next segment, the next model) says it in one line;
+    under --debug it stops there with the traceback."""
+    if os.environ.get("DANCE3D_DEBUG") == "1":
+        raise exc
+    print(f"dance3d: {one_line(exc)}", file=sys.stderr)
+
+
+def _dispatch(args: argparse.Namespace) -> int:
     root = args.root.resolve()
     if args.command == "run":
         from pipeline.core.stage import run_stage, setup_logging
@@ -504,7 +550,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             model = convert_videopose3d(args.checkpoint, args.out)
         except Dance3dError as exc:
-            print(f"dance3d: {exc}", file=sys.stderr)
+            _say(exc)
             return 2
         print(f"wrote {args.out} (receptive field {model.receptive_field} frames)")
         return 0
@@ -534,7 +580,7 @@ def _qc(root: Path, args: argparse.Namespace) -> int:
         try:
             print(qc_video(root, segment_id, kp_min_score=kp_min_score).relative_to(root))
         except Dance3dError as exc:
-            print(f"dance3d: {exc}", file=sys.stderr)
+            _say(exc)
             failed += 1
     return 2 if failed else 0
 
@@ -671,7 +717,7 @@ def _world_clip_of(path: Path, clip_id: str | None):
     try:
         clips = {c.clip_id: c for c in read_world(path)}
     except Dance3dError as exc:
-        print(f"dance3d: {exc}", file=sys.stderr)
+        _say(exc)
         return None
     clip = clips.get(clip_id)
     if clip is None:
@@ -722,7 +768,7 @@ def _render_group(root: Path, segment_id: str, out: Path) -> int:
         render_group(SegmentVideo.from_index(root / RAW, row), clips, float(read_meta(world)["fps"]), out,
                      audio=root / AUDIO / f"{segment_id}.flac", title=segment_id)
     except Dance3dError as exc:
-        print(f"dance3d: {exc}", file=sys.stderr)
+        _say(exc)
         return 2
     print(f"wrote {out}: {len(clips)} dancers")
     return 0
@@ -767,7 +813,7 @@ def _export_smpl_bvh(args: argparse.Namespace) -> int:
         try:
             clips = [c for c in read_world(args.motion) if c.smpl_poses is not None]
         except Dance3dError as exc:
-            print(f"dance3d: {exc}", file=sys.stderr)
+            _say(exc)
             return 2
         args.out.mkdir(parents=True, exist_ok=True)
         outs = [(c, args.out / f"{c.clip_id}.bvh") for c in clips]
@@ -793,7 +839,7 @@ def _exported(root: Path, name: str, run, empty: str):
     try:
         written = run(val_fraction)
     except Dance3dError as exc:
-        print(f"dance3d: {exc}", file=sys.stderr)
+        _say(exc)
         return None
     if not written:
         print(f"dance3d export {name}: {empty}", file=sys.stderr)

@@ -15,7 +15,8 @@ COMMON_KEYS = ("workers", "executor", "max_failure_ratio", "ray")
 def load_params(path: str | Path = "params.yaml") -> dict[str, Any]:
     path = Path(path)
     if not path.exists():
-        raise InputError(path, "params file not found (run from the project root)")
+        raise InputError(path, "not found: run this in a dance3d project (the folder with dvc.yaml and "
+                               "params.yaml), or give --root")
     try:
         data = yaml.safe_load(path.read_text()) or {}
     except yaml.YAMLError as exc:

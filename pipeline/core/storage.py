@@ -126,8 +126,18 @@ def item_files(folder: Path) -> list[Path]:
 
 
 def read_meta(path: Path) -> dict[str, Any]:
-    """The dance3d metadata of a Parquet file ({} if it has none)."""
-    schema = pq.read_schema(path)
+    """The dance3d metadata of a Parquet file ({} if it has none); a missing file, or one that is
+    not Parquet, is an InputError naming it (every contract's reader starts here)."""
+    from pipeline.core.errors import InputError
+
+    try:
+        schema = pq.read_schema(path)
+    except FileNotFoundError:
+        raise InputError(path, "no such file") from None
+    except IsADirectoryError:
+        raise InputError(path, "a folder, not a Parquet file") from None
+    except (pa.ArrowInvalid, OSError) as exc:
+        raise InputError(path, f"not a Parquet file ({' '.join(str(exc).split())[:120]})") from None
     raw = (schema.metadata or {}).get(META_KEY)
     return json.loads(raw) if raw else {}
 
