@@ -234,21 +234,41 @@ def test_the_pose2d_models_refuse_cuda_without_it_before_any_work(monkeypatch, m
         model_files(root, {"device": "gpu"})
 
 
+def in_a_process_of_its_own(code: str) -> dict:
+    """Run ``code`` (which prints one JSON object) in a fresh Python: OpenVINO's native runtime is
+    kept out of the test process, whose later forked workers it does not expect."""
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
 def test_openvino_runs_the_models_as_onnx_runtime_does_in_f32(models_dir: Path) -> None:
     # OpenVINO reads the same ONNX bytes (here BlazePose pruned of its mask, as the stage builds it)
     # and answers the same session calls; in f32 its outputs are ONNX Runtime's to rounding.
-    from pipeline.pose.models.loading import UNUSED_OUTPUTS
-
-    rng = np.random.default_rng(0)
-    for name, kind in (("tinypose_256x192.onnx", "tinypose"), ("blazepose_full.onnx", "blazepose")):
-        pair = [create_session(models_dir / name, 1, unused_outputs=UNUSED_OUTPUTS.get(kind), runtime=runtime)
-                for runtime in ("onnxruntime", "openvino")]
-        ports = [[(p.name, list(p.shape)) for p in s.get_outputs()] for s in pair]
-        assert ports[0] == ports[1] and [p.name for p in pair[0].get_inputs()] == [p.name for p in pair[1].get_inputs()]
-        port = pair[0].get_inputs()[0]
-        feed = {port.name: rng.uniform(0, 1, port.shape).astype(np.float32)}
-        for a, b in zip(*(s.run(None, feed) for s in pair)):
-            assert np.allclose(a, b, atol=2e-3 * max(1.0, float(np.abs(a).max()))), name
+    result = in_a_process_of_its_own(f"""
+import json
+from pathlib import Path
+import numpy as np
+from pipeline.pose.models.loading import UNUSED_OUTPUTS
+from pipeline.pose.models.session import create_session
+rng, out = np.random.default_rng(0), {{}}
+for name, kind in (("tinypose_256x192.onnx", "tinypose"), ("blazepose_full.onnx", "blazepose")):
+    pair = [create_session(Path({str(models_dir)!r}) / name, 1, unused_outputs=UNUSED_OUTPUTS.get(kind),
+                           runtime=runtime) for runtime in ("onnxruntime", "openvino")]
+    port = pair[0].get_inputs()[0]
+    feed = {{port.name: rng.uniform(0, 1, port.shape).astype(np.float32)}}
+    gaps = [float(np.abs(a - b).max() / max(1.0, float(np.abs(a).max()))) for a, b in
+            zip(*(s.run(None, feed) for s in pair))]
+    out[kind] = {{"ports": [[(p.name, list(p.shape)) for p in s.get_outputs()] for s in pair],
+                 "inputs": [[p.name for p in s.get_inputs()] for s in pair], "gap": max(gaps)}}
+print(json.dumps(out))
+""")
+    for kind, found in result.items():
+        assert found["ports"][0] == found["ports"][1] and found["inputs"][0] == found["inputs"][1], kind
+        assert found["gap"] < 2e-3, (kind, found["gap"])
 
 
 def test_auto_runs_each_model_where_it_was_measured_best_and_in_onnx_runtime_without_openvino(monkeypatch) -> None:
@@ -293,7 +313,7 @@ def test_openvino_uninstalled_leaves_every_model_in_onnx_runtime(monkeypatch, mo
 
 def test_a_runtime_other_than_onnx_runtime_f32_is_an_input_of_every_pose2d_file(models_dir: Path,
                                                                                   monkeypatch) -> None:
-    from pipeline.pose.models.loading import load_pose_models, model_files
+    from pipeline.pose.models.loading import model_files
 
     monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
     root = Path(__file__).resolve().parents[2]
@@ -303,5 +323,11 @@ def test_a_runtime_other_than_onnx_runtime_f32_is_an_input_of_every_pose2d_file(
     assert set(plain) == {"rtmdet-nano-person", "tinypose", "blazepose-full"}
     # ... another runtime is named beside each model's checksum, so its files are made anew.
     assert hashes == {**plain, **{f"{name}@runtime": "openvino-f32" for name in plain}}
-    models = load_pose_models(files)
-    assert type(models.pose.body.session).__name__ == "OpenVinoSession"
+    assert {runtime for _, runtime, _ in files.runtimes} == {"openvino"} and len(files.runtimes) == 3
+    loaded = in_a_process_of_its_own(f"""
+import json
+from pipeline.pose.models.loading import ModelFiles, load_pose_models
+models = load_pose_models(ModelFiles(**{dataclasses.asdict(files)!r}))
+print(json.dumps([type(models.detector.session).__name__, type(models.pose.body.session).__name__]))
+""")
+    assert loaded == ["OpenVinoSession", "OpenVinoSession"]

@@ -112,7 +112,9 @@ def choose_runtime(kind: str, runtime: str = "auto", precision: str = "auto",
         if not on_cpu:
             raise RuntimeError("runtime 'openvino' runs on the CPU; set pose2d.device: cpu")
         return "openvino", precision if precision != "auto" else measured[1]
-    if runtime == "auto" and on_cpu and openvino_available() and measured[0] == "openvino":
+    # openvino is imported only for a model that runs there: its native runtime is not loaded into a
+    # process (and the workers it forks) that does not use it.
+    if runtime == "auto" and on_cpu and measured[0] == "openvino" and openvino_available():
         return "openvino", precision if precision != "auto" else measured[1]
     if precision == "bf16":
         raise RuntimeError("precision 'bf16' needs the openvino runtime (ONNX Runtime runs f32 on the CPU)")
