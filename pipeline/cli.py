@@ -334,12 +334,12 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _eval_pose2d(root: Path, args: argparse.Namespace) -> dict:
-    from pipeline.core.params import load_params, stage_params
+    from pipeline.core.params import project_or_default_params, stage_params
     from pipeline.pose.evaluate import evaluate_pose2d
     from pipeline.pose.models.loading import load_pose_models, model_files
     from pipeline.pose.pose2d import Pose2dOptions
 
-    params = stage_params(load_params(root / "params.yaml"), "pose2d")
+    params = stage_params(project_or_default_params(root), "pose2d")
     for key, value in (("detector", args.detector), ("pose_model", args.pose_model), ("det_score", args.det_score),
                        ("confirm_score", args.confirm_score), ("dark_mean", args.dark_mean),
                        ("runtime", args.runtime), ("precision", args.precision)):
@@ -365,12 +365,10 @@ def _eval(root: Path, args: argparse.Namespace) -> int:
 
             result = _eval_pose2d(root, args)
         elif args.what == "lifter":
-            from pipeline.core.params import load_params, stage_params
             from pipeline.motion.lifting.evaluate import evaluate_onnx
             from pipeline.motion.lifting.evaluate import format_report as format_table
 
-            model = args.model or root / stage_params(load_params(root / "params.yaml"), "lift").get(
-                "model", "models/lifter.onnx")
+            model = args.model or _lift_models(root, args)[0]  # the project's, else the shipped lifter
             result = evaluate_onnx(model, args.mocap, heldout_only=not args.all, flip=not args.no_flip,
                                    max_seconds=args.seconds)
         elif args.what == "world":
@@ -434,16 +432,16 @@ def _capture_eval_options(parser: argparse.ArgumentParser, seconds: float) -> No
 def _lift_models(root: Path, args: argparse.Namespace) -> tuple[Path, Path | None]:
     """The lifter and contact model: the options', else params.yaml lift's, else (a fresh clone, where
     train_lifter and train_contact have not run) the shipped ones, saying so."""
-    from pipeline.core.params import load_params, stage_params
+    from pipeline.core.params import project_or_default_params, stage_params
     from pipeline.motion.shipped import SHIPPED_CONTACT, SHIPPED_LIFTER, model_or_shipped
 
-    lift = stage_params(load_params(root / "params.yaml"), "lift")
-    model, contact = args.model, args.contact
+    lift = stage_params(project_or_default_params(root), "lift")
+    model, contact = args.model, getattr(args, "contact", None)
     if model is None:
         model, notice = model_or_shipped(root / lift.get("model", "models/lifter.onnx"), SHIPPED_LIFTER, "lifter")
         if notice:
             print(f"dance3d: {notice}", file=sys.stderr)
-    if contact is None and lift.get("contact_model"):
+    if contact is None and hasattr(args, "contact") and lift.get("contact_model"):  # eval lifter has none
         contact, notice = model_or_shipped(root / lift["contact_model"], SHIPPED_CONTACT, "contact model")
         if notice:
             print(f"dance3d: {notice}", file=sys.stderr)

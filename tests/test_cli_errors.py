@@ -101,3 +101,15 @@ def test_a_library_error_is_one_line_naming_its_file_and_debug_shows_the_traceba
     with pytest.raises(InputError):
         main(["eval", "sync", str(bad)])
     assert one_line(FileNotFoundError(2, "No such file or directory", "x.csv")) == "x.csv: no such file or folder"
+
+
+def test_an_eval_given_all_its_inputs_runs_outside_a_project_with_the_packages_parameters(
+        tmp_path: Path, monkeypatch, capsys, mocap_dir: Path) -> None:
+    from pipeline.core.params import DEFAULT_PARAMS, load_params, project_or_default_params
+    from tests.conftest import PROJECT
+
+    # The package's defaults are the project's params.yaml as it ships, so figures agree.
+    assert project_or_default_params(tmp_path) == load_params(DEFAULT_PARAMS) == load_params(PROJECT / "params.yaml")
+    monkeypatch.chdir(tmp_path)
+    assert main(["eval", "lifter", "--mocap", str(mocap_dir / "perfume"), "--seconds", "2"]) == 0
+    assert "P-MPJPE" in capsys.readouterr().out

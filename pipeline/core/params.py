@@ -12,6 +12,18 @@ from pipeline.core.errors import InputError
 COMMON_KEYS = ("workers", "executor", "max_failure_ratio", "ray")
 
 
+# The package's own parameters: the project's params.yaml as it ships (a link to it in the source
+# tree, a copy in a wheel), for commands given every input on the command line outside a project.
+DEFAULT_PARAMS = Path(__file__).resolve().parents[1] / "default_params.yaml"
+
+
+def project_or_default_params(root: str | Path) -> dict[str, Any]:
+    """The project's params.yaml, or outside a project the package's defaults (``DEFAULT_PARAMS``):
+    an eval or export given all its inputs by path works anywhere and measures as the project would."""
+    path = Path(root) / "params.yaml"
+    return load_params(path if path.exists() else DEFAULT_PARAMS)
+
+
 def load_params(path: str | Path = "params.yaml") -> dict[str, Any]:
     path = Path(path)
     if not path.exists():
