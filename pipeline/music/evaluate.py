@@ -74,8 +74,9 @@ def evaluate_beats(audio: Path, annotations: Path, fps: float = 24.0) -> dict:
     reference, bars = read_beat_annotations(annotations)
     try:
         y = librosa.load(str(audio), sr=RNN_SR, mono=True)[0]
-    except Exception as exc:  # audioread / soundfile raise several types
-        raise InputError(audio, f"cannot read the audio: {exc}") from None
+    except Exception as exc:  # audioread / soundfile raise several types, audioread's without a message
+        reason = " ".join(str(exc).split()) or f"no audio decoder reads it ({type(exc).__name__})"
+        raise InputError(audio, f"cannot read the audio: {reason}") from None
     ref_down = reference[bars == 1] if bars is not None else None
     out = {"audio": str(audio), "annotations": str(annotations), "annotated_beats": int(len(reference))}
     for tracker in TRACKERS:
