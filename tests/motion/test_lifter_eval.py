@@ -15,6 +15,7 @@ from pipeline.motion.lifting.evaluate import (
     PROTOCOL_CAMERAS,
     add_pose_noise,
     evaluate_lifter,
+    held_out_later,
     split,
     view,
 )
@@ -43,8 +44,16 @@ def test_the_split_holds_out_whole_performers_and_takes(mocap_dir: Path) -> None
     # ChoreoNet's second dancer (files ll_*, mm_*) is wholly held out; the first is wholly trained on.
     choreo = [s.name.split("/")[1] for s in held if s.source == "choreonet_c3d"]
     assert len(choreo) == 22 and all(n.startswith(("ll_", "mm_")) for n in choreo)
-    # Every source is scored but Bandai's second set (locomotion by the first set's actors and skeleton).
-    assert {s.source for s in held} == {s.source for s in sequences} - {"bandai_namco_2_subset"}
+    # Every earlier source is scored but Bandai's second set (locomotion by the first set's actors and
+    # skeleton), on the same 40 sequences as before the later sources came ...
+    later = {"bandai_namco_2_more", "cmu_salsa_60_61", "mocap_recovery_c3d"}
+    assert {s.source for s in held} == {s.source for s in sequences} - {"bandai_namco_2_subset"} - later
+    assert len(held) == 40
+    # ... and the later sources' own held-out takes are in neither the training set nor those 40.
+    apart = held_out_later(sequences)
+    assert {s.source for s in apart} == later and not {s.name for s in apart} & (train_names | {s.name for s in held})
+    assert {s.name for s in apart if s.source == "cmu_salsa_60_61"} == {
+        f"cmu_salsa_60_61/{who}_{take}_scaled" for who in ("60", "61") for take in ("14", "15")}
 
 
 def test_cameras_see_the_dancer_in_front_of_them_from_five_headings() -> None:
