@@ -14,9 +14,6 @@ import pytest
 from pipeline.cli import _parser, main, one_line
 from pipeline.core.errors import InputError
 
-# Commands that serve or train until stopped, whatever their input: their failures in an empty
-# folder are still checked (they must stop at the missing project before serving or training).
-NO_RANDOM_INPUT = {("review",), ("sample",)}
 
 
 def leaf_commands(parser: argparse.ArgumentParser, prefix: tuple[str, ...] = ()) -> list[tuple]:
@@ -59,8 +56,6 @@ def test_the_walk_finds_every_command_group() -> None:
 @pytest.mark.parametrize("words,parser", COMMANDS, ids=[" ".join(w) for w, _ in COMMANDS])
 def test_every_command_fails_in_one_line_without_a_traceback(words: tuple, parser, how: str, tmp_path: Path,
                                                              monkeypatch, capsys) -> None:
-    if how == "random bytes" and words in NO_RANDOM_INPUT:
-        pytest.skip("serves or trains until stopped when its input is usable")
     empty = tmp_path / "empty"
     empty.mkdir()
     monkeypatch.chdir(empty)
