@@ -15,7 +15,6 @@ from pipeline.cli import _parser, main, one_line
 from pipeline.core.errors import InputError
 
 
-
 def leaf_commands(parser: argparse.ArgumentParser, prefix: tuple[str, ...] = ()) -> list[tuple]:
     """(command words, the parser that takes their arguments) for every runnable command."""
     subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
