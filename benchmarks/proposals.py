@@ -24,13 +24,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from tests.ingest.test_propose import PARTS, assemble  # noqa: E402
-
 from pipeline.core.params import load_params, stage_params  # noqa: E402
 from pipeline.ingest.media import probe  # noqa: E402
 from pipeline.pose.models.loading import load_pose_models, model_files, model_names  # noqa: E402
 from pipeline.pose.pose2d import Pose2dOptions  # noqa: E402
 from pipeline.pose.propose import ProposeOptions, boundary_errors, propose, timeline  # noqa: E402
+from tests.pose.test_propose import PARTS, assemble  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 ASSEMBLED = {
