@@ -42,9 +42,8 @@ def run(root: Path) -> None:
     # Where the models run is not what they compute: a segment done on a GPU is not redone on a CPU.
     # The runtime and precision chosen are (model_files: an input where not ONNX Runtime's f32).
     computed = {k: v for k, v in params.items() if k not in ("device", "runtime", "precision")}
-    for name, label in sorted(model_hashes.items()):
-        if name.endswith("@runtime"):
-            log.info("%s runs in %s", name.removesuffix("@runtime"), label)
+    for path, runtime, precision in files.runtimes:
+        log.info("%s runs in %s (%s)", Path(path).name, runtime, precision)
     # With several workers a long segment is posed in parts (pipeline/pose/parts.py), joined below.
     part_seconds = float(params.get("part_seconds", 0.0)) if int(params.get("workers", 1)) > 1 else 0.0
     items, split = [], []

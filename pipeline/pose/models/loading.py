@@ -61,14 +61,15 @@ def model_files(root: Path, params: dict) -> tuple[ModelFiles, dict[str, str]]:
                                             str(params.get("precision", "auto")), device) for spec in dets + poses}
     except (ValueError, RuntimeError) as exc:
         raise InputError(root / "params.yaml", f"pose2d.{exc}") from None
+    other = {name: label for name in paths if (label := runtime_label(*chosen[name]))}  # not ONNX Runtime f32
     files = ModelFiles(tuple((str(paths[d.name]), d.kind, d.input_size) for d in dets),
                        tuple((str(paths[p.name]), p.kind, p.input_size) for p in poses),
                        int(params.get("threads", 1)), Pose2dOptions.from_params(params).detector_floor,
                        float(params.get("crop_padding", 1.25)), device,
-                       tuple((str(paths[name]), *chosen[name]) for name in paths if runtime_label(*chosen[name])))
+                       tuple((str(paths[name]), *chosen[name]) for name in other))
     # A runtime other than ONNX Runtime's f32 computes other numbers: it is an input of every file.
     hashes = {name: sha256_file(path) for name, path in paths.items()}
-    hashes.update({f"{name}@runtime": runtime_label(*chosen[name]) for name in paths if runtime_label(*chosen[name])})
+    hashes.update({f"{name}@runtime": label for name, label in other.items()})
     return files, hashes
 
 

@@ -70,7 +70,6 @@ class OpenVinoSession:
                   "INFERENCE_PRECISION_HINT": precision}
         self.compiled = core.compile_model(network, "CPU", config)
         self.request = self.compiled.create_infer_request()
-        self.precision = precision
 
     @staticmethod
     def _port(port) -> Port:
