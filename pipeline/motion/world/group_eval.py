@@ -102,11 +102,15 @@ class Placed:
     coco: np.ndarray   # T x 21 x 3 world COCO-17 then heels and toe tips
 
 
+def _shifted(seq: MocapSequence, shift: np.ndarray) -> Placed:
+    return Placed(np.concatenate([seq.h36m, seq.feet], 1) - shift, np.concatenate([seq.coco, seq.feet], 1) - shift)
+
+
 def place(seq: MocapSequence, spot: np.ndarray) -> Placed:
     """A take centred on ``spot`` (its mean root path there), its standing level on y = 0."""
     shift = np.array([0.0, standing_level(seq.feet, seq.fps), 0.0])
     shift[[0, 2]] = seq.h36m[:, 0, [0, 2]].mean(0) - spot
-    return Placed(np.concatenate([seq.h36m, seq.feet], 1) - shift, np.concatenate([seq.coco, seq.feet], 1) - shift)
+    return _shifted(seq, shift)
 
 
 def place_together(takes: list[MocapSequence]) -> tuple[list[Placed], np.ndarray]:
@@ -116,8 +120,7 @@ def place_together(takes: list[MocapSequence]) -> tuple[list[Placed], np.ndarray
     level = min(standing_level(t.feet, t.fps) for t in takes)
     centre = np.concatenate([t.h36m[:, 0] for t in takes]).mean(0)
     shift = np.array([centre[0], level, centre[2]])
-    placed = [Placed(np.concatenate([t.h36m, t.feet], 1) - shift, np.concatenate([t.coco, t.feet], 1) - shift)
-              for t in takes]
+    placed = [_shifted(t, shift) for t in takes]
     return placed, np.array([p.body[:, 0, [0, 2]].mean(0) for p in placed])
 
 
@@ -200,6 +203,12 @@ def run_group(models: LiftModels, takes: list[MocapSequence], camera: GroupCamer
                          "floor_deg": float(np.median([up_error_deg(g.camera, true_up) for g in alone]))}}
 
 
+def random_camera(rng: np.random.Generator) -> GroupCamera:
+    """A camera drawn as the protocol says: a set-up, a pitch and the nearest spot's distance."""
+    setup, height = SETUPS[int(rng.integers(len(SETUPS)))]
+    return GroupCamera(setup, height, float(rng.choice(PITCHES)), float(rng.uniform(*NEAREST)))
+
+
 def evaluate_groups(models: LiftModels, sequences: list[MocapSequence], *, groups: int = 8, seconds: float = 15.0,
                     sizes: tuple[int, ...] = SIZES, seed: int = 0, progress=None,
                     real: list[list[MocapSequence]] = ()) -> dict:
@@ -216,9 +225,7 @@ def evaluate_groups(models: LiftModels, sequences: list[MocapSequence], *, group
     for size in sizes:
         for _ in range(groups):
             chosen = [takes[i] for i in rng.choice(len(takes), size, replace=False)]
-            setup, height = SETUPS[int(rng.integers(len(SETUPS)))]
-            camera = GroupCamera(setup, height, float(rng.choice(PITCHES)), float(rng.uniform(*NEAREST)))
-            for method, row in run_group(models, chosen, camera, rng).items():
+            for method, row in run_group(models, chosen, random_camera(rng), rng).items():
                 runs.append({"method": method, "sequences": [t.name for t in chosen], **row})
             if progress:
                 progress()
@@ -226,9 +233,7 @@ def evaluate_groups(models: LiftModels, sequences: list[MocapSequence], *, group
     for group in real:
         cut = [first_seconds(resample(s, VIDEO_FPS), seconds) for s in group]
         for _ in range(groups):
-            setup, height = SETUPS[int(rng.integers(len(SETUPS)))]
-            camera = GroupCamera(setup, height, float(rng.choice(PITCHES)), float(rng.uniform(*NEAREST)))
-            for method, row in run_group(models, cut, camera, rng, together=True).items():
+            for method, row in run_group(models, cut, random_camera(rng), rng, together=True).items():
                 real_runs.append({"method": method, "sequences": [t.name for t in group], **row})
             if progress:
                 progress()
