@@ -6,8 +6,9 @@ Usage: python -m benchmarks.lifter_training [--profile long] [--steps 200] [--th
 
 It loads the profile's motion capture (timed apart), trains ``--steps`` steps with a checkpoint at
 the end (as ``train_lifter`` does every ``checkpoint_minutes``), and reports seconds per 1,000 steps
-(the median over blocks of 50 steps, scaled), the process's peak resident memory (the capture loaded, as
-in training) and the checkpoint's size. No evaluation: the held-out protocol's cost is the same for every profile.
+(the median over blocks of 50 steps, scaled), the process's peak resident memory (the capture
+loaded, as in training) and the checkpoint's size. No evaluation: the held-out protocol's cost is the
+same for every profile.
 """
 
 from __future__ import annotations
@@ -22,9 +23,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-import yaml
 
-from pipeline.core.params import with_profile
+from pipeline.core.params import load_params, stage_params, with_profile
 from pipeline.core.storage import write_json
 from pipeline.motion.lifting.evaluate import split
 from stages.train_lifter import config_from_params
@@ -43,7 +43,7 @@ def main() -> None:
 
     from pipeline.motion.lifting import train as training
 
-    section = yaml.safe_load(Path("params.yaml").read_text())["train_lifter"]
+    section = stage_params(load_params("params.yaml"), "train_lifter")
     params = with_profile({**section, "profile": args.profile}, "train_lifter")
     cfg = config_from_params({**params, "threads": args.threads})
     started = time.monotonic()

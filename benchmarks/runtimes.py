@@ -8,9 +8,10 @@ Usage: DANCE3D_MODELS=../shared/models python -m benchmarks.runtimes [--rounds 7
 
 Every configuration is timed in each round, the configurations in turn, so a noisy machine slows
 them alike; the figure is the median over rounds of the mean of ``--calls`` calls, after warm-up.
-The input is a real frame of the shared media (the detector's letterboxed image, a crop of the
-dancer for the pose models), as the stage feeds them. BlazePose is built without its unused
-segmentation output, as the stage builds it.
+The input is the first frame of the shared MusePose clip resized to each model's input size
+(scaled to [0, 1] for BlazePose, standardised for the channels-first models): real pixels for the
+timing and the output gaps, not the stage's letterbox or crops, which `eval pose2d` measures.
+BlazePose is built without its unused segmentation output, as the stage builds it.
 """
 
 from __future__ import annotations

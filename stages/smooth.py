@@ -34,8 +34,7 @@ def run(root: Path) -> None:
 
 
 def write_motion_metrics(root: Path) -> None:
-    """reports/smooth.json: frame-weighted means of the per-clip QC over every
-    smoothed segment."""
+    """reports/smooth.json: frame-weighted means of the per-clip QC over every smoothed segment."""
     qcs = [q for f in item_files(root / SMOOTH) for q in read_meta(f).get("clip_qc", {}).values()]
     frames = sum(q["frames"] for q in qcs)
 

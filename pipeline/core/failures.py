@@ -9,6 +9,7 @@ from pathlib import Path
 import pyarrow as pa
 
 from pipeline.core.errors import Dance3dError
+from pipeline.core.paths import REPORTS
 from pipeline.core.storage import write_parquet
 
 FAILURES_FILE = "_failures.parquet"
@@ -36,7 +37,7 @@ def write_failures(folder: Path, stage: str, failures: list[Failure], total: int
 
     With ``total`` (the stage's item count) a summary also goes to
     ``reports/failures_<stage>.json`` of the project (``folder`` is ``<project>/data/<stage>``); the
-    shard stage sums them into the corpus's headline ``failed_items`` and ``failed_share``.
+    shard stage sums them (``failure_totals``) into the corpus's headline ``failed_share``.
     """
     columns = ["item", "stage", "error_class", "message", "time"]
     rows = [asdict(f) for f in sorted(failures, key=lambda f: f.item)]
@@ -49,7 +50,7 @@ def write_failures(folder: Path, stage: str, failures: list[Failure], total: int
         by_class: dict[str, int] = {}
         for f in failures:
             by_class[f.error_class] = by_class.get(f.error_class, 0) + 1
-        write_json(Path(folder).parent.parent / "reports" / f"failures_{stage}.json",
+        write_json(Path(folder).parent.parent / REPORTS / f"failures_{stage}.json",
                    {"items": total, "failed": len(failures),
                     "failed_share": round(len(failures) / total, 4) if total else 0.0, "by_error_class": by_class})
     return path
@@ -77,7 +78,7 @@ def failure_totals(root: Path) -> dict:
 
     items = failed = 0
     stages = {}
-    for path in sorted((Path(root) / "reports").glob("failures_*.json")):
+    for path in sorted((Path(root) / REPORTS).glob("failures_*.json")):
         report = json.loads(path.read_text())
         items += int(report.get("items", 0))
         failed += int(report.get("failed", 0))
