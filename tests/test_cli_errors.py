@@ -36,9 +36,8 @@ def arguments(parser: argparse.ArgumentParser, path: str) -> list[str]:
             value = "1"
         else:
             value = path
-        count = 1 if action.nargs in (None, "?") else 1
-        values = [value] * count
-        out += ([action.option_strings[0]] if action.option_strings else []) + values
+        # one value, whatever nargs: "+" and "*" take one too
+        out += ([action.option_strings[0]] if action.option_strings else []) + [value]
     return out
 
 
