@@ -368,7 +368,7 @@ def _eval(root: Path, args: argparse.Namespace) -> int:
             from pipeline.motion.lifting.evaluate import evaluate_onnx
             from pipeline.motion.lifting.evaluate import format_report as format_table
 
-            model = args.model or _lift_models(root, args)[0]  # the project's, else the shipped lifter
+            model, _ = _lift_models(root, args, contact=False)  # the project's, else the shipped lifter
             result = evaluate_onnx(model, args.mocap, heldout_only=not args.all, flip=not args.no_flip,
                                    max_seconds=args.seconds)
         elif args.what == "world":
@@ -429,23 +429,23 @@ def _capture_eval_options(parser: argparse.ArgumentParser, seconds: float) -> No
     parser.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
 
 
-def _lift_models(root: Path, args: argparse.Namespace) -> tuple[Path, Path | None]:
-    """The lifter and contact model: the options', else params.yaml lift's, else (a fresh clone, where
-    train_lifter and train_contact have not run) the shipped ones, saying so."""
+def _lift_models(root: Path, args: argparse.Namespace, contact: bool = True) -> tuple[Path, Path | None]:
+    """The lifter and (with ``contact``) the contact model: the options', else params.yaml lift's,
+    else (a fresh clone, where train_lifter and train_contact have not run) the shipped ones, saying so."""
     from pipeline.core.params import project_or_default_params, stage_params
     from pipeline.motion.shipped import SHIPPED_CONTACT, SHIPPED_LIFTER, model_or_shipped
 
     lift = stage_params(project_or_default_params(root), "lift")
-    model, contact = args.model, getattr(args, "contact", None)
+    model, contact_model = args.model, args.contact if contact else None
     if model is None:
         model, notice = model_or_shipped(root / lift.get("model", "models/lifter.onnx"), SHIPPED_LIFTER, "lifter")
         if notice:
             print(f"dance3d: {notice}", file=sys.stderr)
-    if contact is None and hasattr(args, "contact") and lift.get("contact_model"):  # eval lifter has none
-        contact, notice = model_or_shipped(root / lift["contact_model"], SHIPPED_CONTACT, "contact model")
+    if contact and contact_model is None and lift.get("contact_model"):
+        contact_model, notice = model_or_shipped(root / lift["contact_model"], SHIPPED_CONTACT, "contact model")
         if notice:
             print(f"dance3d: {notice}", file=sys.stderr)
-    return model, contact
+    return model, contact_model
 
 
 def _fetch_models(root: Path, args: argparse.Namespace) -> int:

@@ -16,6 +16,8 @@ def train_profile(out: Path, cfg, mocap: Path, checkpoint_minutes: float = 5.0):
     """The train_lifter stage's training: the capture split by whole takes and performers, training
     that checkpoints and resumes (``lifting.train``), the later sources' own held-out table, and
     the ONNX with its provenance at ``out``. Returns the ``TrainResult``."""
+    # Imported here: the stage imports this module also when it only copies the shipped lifter,
+    # which needs no torch.
     from pipeline.motion.lifting.evaluate import held_out_later, split
     from pipeline.motion.lifting.train import (
         checkpoint_path,
