@@ -253,7 +253,7 @@ def schemas_page() -> str:
 
 def write_reference(root: Path, out: Path) -> list[Path]:
     """Write the generated pages into ``out``; the paths written."""
-    from pipeline.cli import _parser as build_parser
+    from pipeline.cli import build_parser
 
     sys.path.insert(0, str(root))  # the stage modules
     out.mkdir(parents=True, exist_ok=True)

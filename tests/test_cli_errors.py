@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from pipeline.cli import _parser, main, one_line
+from pipeline.cli import build_parser, main, one_line
 from pipeline.core.errors import InputError
 
 
@@ -41,7 +41,7 @@ def arguments(parser: argparse.ArgumentParser, path: str) -> list[str]:
     return out
 
 
-COMMANDS = leaf_commands(_parser())
+COMMANDS = leaf_commands(build_parser())
 
 
 def test_the_walk_finds_every_command_group() -> None:

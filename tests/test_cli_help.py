@@ -8,7 +8,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from pipeline.cli import _parser as build_parser
+from pipeline.cli import build_parser
 from pipeline.reference import commands
 
 GOLDEN = Path(__file__).parent / "golden" / "cli_help.txt"

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from pipeline.cli import _parser
+from pipeline.cli import build_parser
 from pipeline.reference import commands, param_docs, undocumented_commands, undocumented_params, write_reference
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -16,7 +16,7 @@ def test_every_params_key_says_what_it_means() -> None:
 
 
 def test_every_command_and_option_has_help() -> None:
-    assert undocumented_commands(_parser()) == []
+    assert undocumented_commands(build_parser()) == []
 
 
 def test_a_key_without_a_comment_is_caught(tmp_path: Path) -> None:
@@ -30,7 +30,7 @@ def test_the_generated_pages_name_every_key_command_and_stage(tmp_path: Path) ->
 
     pages = {p.name: p.read_text() for p in write_reference(ROOT, tmp_path)}
     assert all(f"`{d.path}`" in pages["params.md"] for d in param_docs(ROOT / "params.yaml") if "." in d.path)
-    assert all(f"## {line}" in pages["cli.md"] for line, _ in commands(_parser()))
+    assert all(f"## {line}" in pages["cli.md"] for line, _ in commands(build_parser()))
     assert all(f"## {name}" in pages["stages.md"] for name in yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"])
     assert "`smpl_poses`" in pages["schemas.md"] and "`beat_phase`" in pages["schemas.md"]
 
