@@ -39,3 +39,14 @@ def test_stage_modules_only_wire() -> None:
     """A stage module reads params, builds jobs and hands them to its package: 90 lines at most."""
     long = {p.name: n for p in (ROOT / "stages").glob("*.py") if (n := len(p.read_text().splitlines())) > 90}
     assert long == {}
+
+
+def test_pipeline_pages_explain_and_reports_measure() -> None:
+    """A pipeline page says how a stage works (150 lines at most); its measurement logs live in a
+    dated report under docs/reports/ that the page links to."""
+    pages = sorted((ROOT / "docs" / "pipeline").glob("*.md"))
+    assert {p.name: n for p in pages if (n := len(p.read_text().splitlines())) > 150} == {}
+    reports = {p.name for p in (ROOT / "docs" / "reports").glob("*.md")}
+    assert {"lifter.md", "world.md", "pose2d.md", "proposals.md", "music.md", "throughput.md"} <= reports
+    for name in reports:
+        assert "## 20" in (ROOT / "docs" / "reports" / name).read_text(), f"{name} has no dated entry"
