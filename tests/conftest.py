@@ -11,6 +11,7 @@ import http.server
 import os
 import shutil
 import subprocess
+import sys
 import threading
 from pathlib import Path
 
@@ -145,3 +146,48 @@ class Mirror:
 def pose2d_eval_dir() -> Path:
     """COCO-style annotated images (annotations.json + images/) for 2D accuracy."""
     return _asset_dir("DANCE3D_POSE2D_EVAL", "annotations.json")
+
+
+def copy_project(dest: Path) -> Path:
+    """The project's tracked and untracked-but-not-ignored files (no data/, no demo media) in a new
+    git repository at ``dest``."""
+    files = subprocess.run(["git", "ls-files", "-co", "--exclude-standard"], cwd=PROJECT,
+                           capture_output=True, text=True, check=True).stdout.split()
+    for name in files:
+        src = PROJECT / name
+        if src.is_file() and not name.startswith(("data/", "demo/media")):
+            (dest / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dest / name)
+    subprocess.run(["git", "init", "-q"], cwd=dest, check=True)
+    return dest
+
+
+def dvc(root: Path, *args: str) -> subprocess.CompletedProcess:
+    """``dvc ARGS`` in ``root`` with this environment's executables on the PATH."""
+    bin_dir = Path(sys.executable).parent
+    env = {**os.environ, "PATH": f"{bin_dir}{os.pathsep}{os.environ['PATH']}"}
+    return subprocess.run([str(bin_dir / "dvc"), *args], cwd=root, env=env, capture_output=True, text=True)
+
+
+@pytest.fixture(scope="session")
+def built_demo(tmp_path_factory: pytest.TempPathFactory, media_dir: Path, models_dir: Path,
+               mocap_dir: Path) -> Path:
+    """The demo project after one `dvc repro`, built once per session and never changed: tests that
+    change it work on ``demo_copy``. Its environment is the one `make demo` gives."""
+    os.environ["DANCE3D_MODELS"] = str(models_dir)
+    os.environ["DANCE3D_MOCAP"] = str(mocap_dir)
+    os.environ["DANCE3D_MEDIA"] = str(media_dir)  # local copies of the demo's public clips
+    root = copy_project(tmp_path_factory.mktemp("demo") / "dance3d")
+    # The demo's lifter: the shipped one (training it is tested in tests/motion/test_lifting.py).
+    set_params(root, "train", steps=10)  # that it trains: tests/corpus measures the loss
+    set_params(root, "propose_segments", sample_fps=2.0)  # its own tests measure it at the default
+    done = dvc(root, "repro")
+    if done.returncode != 0:
+        pytest.fail("dvc repro on the demo failed:\n" + done.stderr[-3000:])
+    return root
+
+
+def demo_copy(built: Path, dest: Path) -> Path:
+    """A copy of the built demo (data, DVC lock and git repository included) to change freely."""
+    shutil.copytree(built, dest, symlinks=True)
+    return dest

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -17,41 +15,13 @@ from pipeline.annotate.clipfile import read_clean
 from pipeline.ingest.catalog import read_index, read_ledger
 from pipeline.motion.motionfile import read_motion
 from pipeline.pose.trackfile import read_tracks
-from tests.conftest import PROJECT, set_params
-
-
-def _copy_project(dest: Path) -> Path:
-    files = subprocess.run(["git", "ls-files", "-co", "--exclude-standard"], cwd=PROJECT,
-                           capture_output=True, text=True, check=True).stdout.split()
-    for name in files:
-        src = PROJECT / name
-        if src.is_file() and not name.startswith(("data/", "demo/media")):
-            (dest / name).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(src, dest / name)
-    subprocess.run(["git", "init", "-q"], cwd=dest, check=True)
-    return dest
-
-
-def _dvc(root: Path, *args: str) -> subprocess.CompletedProcess:
-    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
-    return subprocess.run([str(Path(sys.executable).parent / "dvc"), *args], cwd=root, env=env,
-                          capture_output=True, text=True)
+from tests.conftest import demo_copy, dvc
 
 
 @pytest.mark.slow
-def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Path, mocap_dir: Path,
-                                 monkeypatch) -> None:
-    monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
-    monkeypatch.setenv("DANCE3D_MOCAP", str(mocap_dir))
-    monkeypatch.setenv("DANCE3D_MEDIA", str(media_dir))  # local copies of the demo's public clips
-    root = _copy_project(tmp_path / "dance3d")
-    # The demo's lifter: the shipped one (training it is tested in tests/motion/test_lifting.py).
-    set_params(root, "train", steps=10)  # that it trains: tests/corpus measures the loss
-    set_params(root, "propose_segments", sample_fps=2.0)  # its own tests measure it at the default
-    # Segments at the source's rate and 2D on keyframes, as the demo is configured.
-
-    first = _dvc(root, "repro")
-    assert first.returncode == 0, first.stderr[-3000:]
+def test_dvc_repro_runs_the_demo(built_demo: Path, tmp_path: Path) -> None:
+    # built_demo ran `dvc repro` once (tests/conftest.py); this test changes its own copy.
+    root = demo_copy(built_demo, tmp_path / "dance3d")
 
     ledger = list(read_ledger(root / "data/raw").values())
     assert [(r["video_id"], r["status"]) for r in ledger] == [
@@ -118,10 +88,10 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     assert (root / "models/tsmt.pt").exists() and json.loads((root / "reports/train.json").read_text())["steps"] == 10
     # dvc metrics show at a glance: the headline figures only, a table a terminal shows; the breakdowns
     # in reports/ beside them.
-    metrics = _dvc(root, "metrics", "show")
+    metrics = dvc(root, "metrics", "show")
     assert metrics.returncode == 0 and "lifter_p_mpjpe_mm" in metrics.stdout and "corpus_windows" in metrics.stdout
     assert "failed_share" in metrics.stdout and max(len(line) for line in metrics.stdout.splitlines()) < 250
-    shown = json.loads(_dvc(root, "metrics", "show", "--json").stdout)
+    shown = json.loads(dvc(root, "metrics", "show", "--json").stdout)
     keys = [key for run in shown.values() for files in run["data"].values() for key in files["data"]]
     assert 10 <= len(keys) <= 25, keys
     assert json.loads((root / "reports/failures_pose2d.json").read_text())["failed"] == 0
@@ -130,11 +100,11 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
     status = subprocess.run([str(Path(sys.executable).parent / "dance3d"), "status"], cwd=root, capture_output=True,
                             text=True)
     assert "lifter_p_mpjpe_mm" in status.stdout and "corpus_windows" in status.stdout  # the same figures, no DVC
-    plots = _dvc(root, "plots", "show", "-o", str(tmp_path / "plots"))
+    plots = dvc(root, "plots", "show", "-o", str(tmp_path / "plots"))
     assert plots.returncode == 0, plots.stderr[-2000:]
     assert (tmp_path / "plots/index.html").exists()
 
-    second = _dvc(root, "repro")
+    second = dvc(root, "repro")
     assert second.returncode == 0, second.stderr[-3000:]
     assert "didn't change, skipping" in second.stdout or "up to date" in second.stdout
 
@@ -143,7 +113,7 @@ def test_dvc_repro_runs_the_demo(tmp_path: Path, media_dir: Path, models_dir: Pa
                    capture_output=True)
     manifest = root / "manifests/tracks/solo_dance_001.csv"
     manifest.write_text(manifest.read_text().replace(",yes,", ",no,"))
-    third = _dvc(root, "repro")
+    third = dvc(root, "repro")
     assert third.returncode == 0, third.stderr[-3000:]
     ran = [line.split("'")[1] for line in third.stdout.splitlines() if line.startswith("Running stage")]
     assert ran == ["discover", "clean", "lift", "smooth", "resample", "ground", "shard", "train"]  # discover: always
