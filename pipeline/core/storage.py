@@ -109,8 +109,30 @@ def write_parquet(
     existing = {k: v for k, v in existing.items() if k != b"pandas"}
     schema_meta = {**existing, META_KEY: json.dumps(meta, sort_keys=True, default=str).encode()}
     table = table.replace_schema_metadata(schema_meta)
+    floats, others = _leaf_columns(table.schema)
     with atomic_path(path) as tmp:
-        pq.write_table(table, tmp, compression=compression, row_group_size=row_group_size)
+        # Floats byte-stream split, without a dictionary: motion is smooth, so the split bytes repeat
+        # and compress about a third smaller (lossless; every Parquet reader decodes it).
+        pq.write_table(table, tmp, compression=compression, row_group_size=row_group_size,
+                       use_dictionary=others or False, use_byte_stream_split=floats or False)
+
+
+def _leaf_columns(schema: pa.Schema) -> tuple[list[str], list[str]]:
+    """The Parquet leaf paths of a table's float and its other columns (lists of floats included)."""
+    floats, others = [], []
+
+    def walk(path: str, kind: pa.DataType) -> None:
+        if pa.types.is_list(kind) or pa.types.is_large_list(kind) or pa.types.is_fixed_size_list(kind):
+            walk(f"{path}.list.element", kind.value_type)
+        elif pa.types.is_struct(kind):
+            for child in kind:
+                walk(f"{path}.{child.name}", child.type)
+        else:
+            (floats if pa.types.is_float32(kind) or pa.types.is_float64(kind) else others).append(path)
+
+    for field in schema:
+        walk(field.name, field.type)
+    return floats, others
 
 
 def write_json(path: Path, payload: Any) -> None:

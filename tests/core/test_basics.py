@@ -165,3 +165,27 @@ def test_the_largest_items_start_first_so_no_worker_waits_on_a_long_one_started_
     items = [WorkItem(i, "fp", (out / f"{i}.parquet",), s, size=s) for i, s in seconds.items()]
     started = run_item_stage("demo", items, _started_at, out_dirs=[out], params={"workers": 2}).done
     assert started["c"] <= min(started["a"], started["b"], started["d"]) + 0.05
+
+
+def test_float_columns_are_stored_byte_stream_split_and_read_back_exactly(tmp_path: Path) -> None:
+    """Motion is smooth, so the bytes of neighbouring floats' exponents repeat: split by byte they
+    compress about a third smaller under zstd (the demo's intermediates: 5.3 -> 3.4 MiB), losslessly."""
+    import numpy as np
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    from pipeline.core.storage import write_parquet
+
+    walk = np.cumsum(np.random.default_rng(0).normal(0, 0.01, (2000, 51)), 0).astype(np.float32)
+    table = pa.table({"clip_id": pa.array(["a"] * 2000),
+                      "joints": pa.FixedSizeListArray.from_arrays(pa.array(walk.ravel()), 51),
+                      "time": pa.array(np.arange(2000) / 24.0)})
+    write_parquet(table, tmp_path / "motion.parquet", schema_version=1)
+    meta = pq.read_metadata(tmp_path / "motion.parquet").row_group(0)
+    encodings = {meta.column(i).path_in_schema: meta.column(i).encodings for i in range(meta.num_columns)}
+    assert "BYTE_STREAM_SPLIT" in encodings["joints.list.element"] and "BYTE_STREAM_SPLIT" in encodings["time"]
+    assert "BYTE_STREAM_SPLIT" not in encodings["clip_id"]  # strings keep their dictionary
+    back = pq.read_table(tmp_path / "motion.parquet")
+    assert back.drop_columns([]).equals(table.replace_schema_metadata(back.schema.metadata))
+    pq.write_table(table, tmp_path / "plain.parquet", compression="zstd")
+    assert (tmp_path / "motion.parquet").stat().st_size < 0.8 * (tmp_path / "plain.parquet").stat().st_size
