@@ -68,7 +68,7 @@ def apply_manifest(tracks: SegmentTracks, spans: list[Span], opts: CleanOptions)
             picked = rows[piece]
             clips.append(Clip(f"{tracks.segment_id}_{span.track_id}_{k}", span.track_id, full,
                               _fill(f, tracks.box[picked], full), _fill(f, tracks.keypoints[picked], full), mask,
-                              _fill(f, tracks.feet[picked], full), _fill(f, tracks.world[picked], full)))
+                              _fill(f, tracks.feet[picked], full)))
     return CleanResult(clips, dropped, interpolated)
 
 

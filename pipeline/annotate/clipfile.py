@@ -2,8 +2,8 @@
 
 One row per clip frame: clip_id (``<segment_id>_<track_id>_<k>``), track_id, frame
 (contiguous within a clip), time (frame / fps, segment clock), box, keypoints (COCO-17
-x, y, score), feet and world (as in the pose2d table), interpolated (the frame was a gap
-filled by interpolation). Metadata: the
+x, y, score), feet (as in the pose2d table), interpolated (the frame was a gap filled by
+interpolation). BlazePose's world landmarks stay in the pose2d table: nothing after it reads them. Metadata: the
 segment, whether spans came from a manifest or a proposal, and how many clips were too
 short to keep.
 """
@@ -19,9 +19,9 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from pipeline.core.storage import column_array, fixed_list, read_meta, write_parquet
-from pipeline.pose.pose2dfile import FEET, KEYPOINTS, WORLD, SegmentInfo
+from pipeline.pose.pose2dfile import FEET, KEYPOINTS, SegmentInfo
 
-SCHEMA_VERSION = 2  # 2: feet and world, carried from pose2d
+SCHEMA_VERSION = 3  # 2: feet and world, carried from pose2d; 3: no world (two thirds of the file, never read)
 CLEAN_SCHEMA = pa.schema(
     [
         ("clip_id", pa.string()),
@@ -32,7 +32,6 @@ CLEAN_SCHEMA = pa.schema(
         ("keypoints", pa.list_(pa.float32(), 51)),
         ("interpolated", pa.bool_()),
         ("feet", pa.list_(pa.float32(), FEET * 3)),
-        ("world", pa.list_(pa.float32(), WORLD * 3)),
     ]
 )
 
@@ -46,7 +45,6 @@ class Clip:
     keypoints: np.ndarray     # n x 17 x 3
     interpolated: np.ndarray  # n bool
     feet: np.ndarray          # n x 4 x 3: heels and toes (score 0: none)
-    world: np.ndarray         # n x 33 x 3: world landmarks in metres (NaN: none)
 
 
 @dataclass(frozen=True)
@@ -75,7 +73,6 @@ def clips_table(clips: list[Clip], fps: float) -> pa.Table:
         fixed_list(np.concatenate([c.keypoints for c in clips]).reshape(-1, KEYPOINTS * 3)),
         pa.array(np.concatenate([c.interpolated for c in clips]), pa.bool_()),
         fixed_list(np.concatenate([c.feet for c in clips]).reshape(-1, FEET * 3)),
-        fixed_list(np.concatenate([c.world for c in clips]).reshape(-1, WORLD * 3)),
     ], schema=CLEAN_SCHEMA)
 
 
@@ -96,11 +93,11 @@ def read_clean(path: Path) -> CleanFile:
     box = column_array(table, "box", (4,))
     kps = column_array(table, "keypoints", (KEYPOINTS, 3))
     interp = column_array(table, "interpolated").astype(bool)
-    feet, world = column_array(table, "feet", (FEET, 3)), column_array(table, "world", (WORLD, 3))
+    feet = column_array(table, "feet", (FEET, 3))  # a schema-2 file's world column is left unread
     clips = []
     for clip_id in dict.fromkeys(ids):  # file order
         rows = np.flatnonzero(ids == clip_id)
         clips.append(Clip(str(clip_id), int(track[rows[0]]), frame[rows], box[rows], kps[rows], interp[rows],
-                          feet[rows], world[rows]))
+                          feet[rows]))
     return CleanFile(SegmentInfo.from_meta(meta, path), clips, str(meta.get("spans_from", "manifest")),
                      int(meta.get("dropped_short", 0)), str(meta.get("fingerprint", "")))

@@ -235,3 +235,10 @@ def test_dancers_who_move_together_get_the_same_verdict_and_a_bystander_among_da
     seated = [track(1, 0.02), track(2, 0.021), track(3, 0.019)]
     verdicts = [reject_reason(t, 0.6, opts, group_motion(seated, 0.6, opts)) for t in seated]
     assert all("nearly static" in v and "the group's 0.020" in v for v in verdicts)
+
+
+def test_the_clean_table_carries_what_lift_reads_and_not_the_world_landmarks() -> None:
+    # BlazePose's 33 world landmarks were two thirds of every clean file and nothing after pose2d read them.
+    from pipeline.annotate.clipfile import CLEAN_SCHEMA
+
+    assert CLEAN_SCHEMA.names == ["clip_id", "track_id", "frame", "time", "box", "keypoints", "interpolated", "feet"]
