@@ -1,0 +1,82 @@
+"""Where a lifter training stands: the held-out protocol on a profile's checkpoint, mid-run, beside
+the shipped lifter, so "train for as long as it pays" is decided on held-out figures, not the loss.
+
+Usage: python -m benchmarks.lifter_checkpoint [--profile long] [--mocap DIR] [--checkpoint FILE]
+                                              [--out benchmarks/results/lifter_checkpoint_<step>.json]
+
+It finds the checkpoint the train_lifter stage writes for the profile (the same name: config,
+training sequences, training code), loads its weights, and scores them and the shipped lifter with
+the held-out protocol (``pipeline/motion/lifting/evaluate.py``: 40 sequences, ten fixed cameras,
+clean and noisy 2D, flip averaging) and on the later sources' held-out takes. The checkpoint is only
+read: a training that is running goes on.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from functools import partial
+from pathlib import Path
+
+from pipeline.core.params import load_params, stage_params, with_profile
+from pipeline.core.storage import write_json
+from stages.train_lifter import config_from_params
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--profile", default="long", help="a train_lifter profile of params.yaml (default long)")
+    parser.add_argument("--mocap", type=Path, default=Path(os.environ.get("DANCE3D_MOCAP", "../shared/mocap")))
+    parser.add_argument("--checkpoint", type=Path, default=None, help="default: the profile's own")
+    parser.add_argument("--out", type=Path, default=None)
+    args = parser.parse_args()
+
+    import torch
+
+    from pipeline.motion.lifting.evaluate import evaluate_lifter, held_out_later, split
+    from pipeline.motion.lifting.infer import load_lifter
+    from pipeline.motion.lifting.model import TemporalModel
+    from pipeline.motion.lifting.train import checkpoint_path, default_checkpoints, evaluate, load_mocap
+    from pipeline.motion.shipped import SHIPPED_LIFTER
+
+    params = with_profile({**stage_params(load_params(Path("params.yaml")), "train_lifter"), "profile": args.profile},
+                          "train_lifter")
+    cfg = config_from_params(params)
+    sequences = load_mocap(args.mocap, cfg)
+    train, val = split(sequences, cfg.holdout)
+    later = held_out_later(sequences)
+    checkpoint = args.checkpoint or checkpoint_path(default_checkpoints(), cfg, train)
+    if not checkpoint.is_file():
+        raise SystemExit(f"{checkpoint}: no checkpoint for profile {args.profile} (run train_lifter with it first)")
+    state = torch.load(checkpoint, weights_only=False)
+    joints = 21 if cfg.feet else 17
+    model = TemporalModel(joints, joints, cfg.filter_widths, cfg.channels, cfg.dropout)
+    model.load_state_dict(state["model"])
+    model.eval()
+    losses = state["losses"]
+    print(f"{checkpoint.name}: step {state['step']} of {cfg.steps}, {state['elapsed'] / 3600:.2f} h of training; "
+          f"training MPJPE over the last 1000 steps {1000 * sum(losses[-1000:]) / len(losses[-1000:]):.1f} mm")
+
+    figures = {"checkpoint": evaluate(model, val, cfg), "checkpoint_later": evaluate(model, later, cfg)["heldout"]}
+    shipped = load_lifter(str(SHIPPED_LIFTER), threads=2)
+    for name, seqs in (("shipped", val), ("shipped_later", later)):
+        result = evaluate_lifter(partial(shipped.lift, flip=True), seqs, fps=cfg.fps, max_seconds=cfg.eval_seconds,
+                                 seed=cfg.seed + 1, feet=cfg.feet)
+        figures[name] = {"val_mpjpe_mm": result["clean"]["mpjpe_mm"], "val_p_mpjpe_mm": result["clean"]["p_mpjpe_mm"],
+                         "noisy_mpjpe_mm": result["noisy"]["mpjpe_mm"],
+                         "noisy_p_mpjpe_mm": result["noisy"]["p_mpjpe_mm"], "heldout": result}
+    record = {"profile": args.profile, "checkpoint": checkpoint.name, "step": state["step"], "steps": cfg.steps,
+              "hours": round(state["elapsed"] / 3600, 2), "figures": figures}
+    out = args.out or Path(f"benchmarks/results/lifter_checkpoint_{state['step']}.json")
+    write_json(out, record)
+    for name in ("checkpoint", "shipped"):
+        f = figures[name]
+        print(f"{name:>10}: MPJPE {f['val_mpjpe_mm']:.1f}  P-MPJPE {f['val_p_mpjpe_mm']:.1f}  noisy "
+              f"{f['noisy_mpjpe_mm']:.1f} / {f['noisy_p_mpjpe_mm']:.1f} mm (40 held-out sequences)")
+    print(json.dumps({k: figures[k] for k in ("checkpoint_later",)}, default=str)[:2000])
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()
