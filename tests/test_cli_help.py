@@ -6,7 +6,10 @@ pipeline/cli.py). A deliberate change of wording updates the golden file:
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
+
+import pytest
 
 from pipeline.cli import build_parser
 from pipeline.reference import commands
@@ -29,6 +32,9 @@ def every_help(width: int = 100) -> str:
             os.environ["COLUMNS"] = previous
 
 
+@pytest.mark.skipif(sys.version_info[:2] != (3, 11),
+                    reason="the golden text is Python 3.11's argparse (the lock's and CI's); other versions word help "
+                           "differently")
 def test_every_help_text_is_the_same_as_before_the_split() -> None:
     assert every_help() == GOLDEN.read_text()
 
