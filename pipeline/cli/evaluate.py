@@ -40,7 +40,7 @@ def add_eval(sub: argparse._SubParsersAction) -> None:
                         help="the CPU runtime of the models (default: params.yaml's pose2d.runtime)")
     pose2d.add_argument("--precision", choices=("auto", "f32", "bf16"), default=None,
                         help="OpenVINO's inference precision (default: params.yaml's pose2d.precision)")
-    pose2d.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
+    _json_out(pose2d)
     beats = evaluate_sub.add_parser(
         "beats", help="both beat trackers against beat annotations (mir_eval), per file",
         description="Track beats with both trackers (rnn: madmom's RNN beats and bars, the default; librosa) and "
@@ -55,14 +55,14 @@ def add_eval(sub: argparse._SubParsersAction) -> None:
     beats.add_argument("--beats", type=Path, action="append", default=[], help="its annotation file")
     beats.add_argument("--dir", type=Path, default=None,
                        help="a folder of audio files, each with its annotation of the same name (.beats or .txt)")
-    beats.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
+    _json_out(beats)
     segments = evaluate_sub.add_parser(
         "segments", help="proposed dance segments against the human rows of annotations/segments.csv",
         description="Score the propose_segments stage's proposals (data/segment_proposals) against the human "
                     "segments of every video that has both: segments found (IoU >= 0.5), proposals that are "
                     "right, and the mean start and end errors in seconds, next to the baseline of the whole "
                     "video as one segment. Propose for annotated videos too (the stage does) to measure.")
-    segments.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
+    _json_out(segments)
     lifter = evaluate_sub.add_parser(
         "lifter", help="a 2D->3D lifter on motion capture seen by fixed virtual cameras (MPJPE, P-MPJPE)",
         description="Project every sequence of a motion-capture folder through ten fixed cameras (five headings; a "
@@ -78,7 +78,7 @@ def add_eval(sub: argparse._SubParsersAction) -> None:
     lifter.add_argument("--all", action="store_true", help="score every sequence, also those the lifter trained on")
     lifter.add_argument("--no-flip", action="store_true", help="no flip averaging (the lift stage's flip_tta)")
     lifter.add_argument("--seconds", type=float, default=60.0, help="at most this much of each sequence (default 60)")
-    lifter.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
+    _json_out(lifter)
     world = evaluate_sub.add_parser(
         "world", help="world-frame motion on motion capture, through the corpus's own path (W-MPJPE, RTE, contact F1)",
         description="Film every sequence of a motion-capture folder with ten pitched cameras (-20 to +20 degrees; "
@@ -122,7 +122,7 @@ def add_eval(sub: argparse._SubParsersAction) -> None:
                     "poses are consistent, and falls as the lifter and the grounding improve; near 1, the poses "
                     "agree no better in sync than out of it (or the dancers do not dance the same steps).")
     sync.add_argument("world", type=Path, help="a world file, data/world/<segment_id>.parquet")
-    sync.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
+    _json_out(sync)
     smpl = evaluate_sub.add_parser(
         "smpl", help="what retargeting onto the SMPL skeleton keeps: joint error, foot sliding, joint ranges",
         description="Retarget every clip of data/world (or, with --mocap, every sequence of a motion-capture folder "
@@ -135,7 +135,7 @@ def add_eval(sub: argparse._SubParsersAction) -> None:
                     "pipeline/motion/smpl/evaluate.py.")
     smpl.add_argument("--mocap", type=Path, default=None, help="a motion-capture folder instead of data/world")
     smpl.add_argument("--seconds", type=float, default=0.0, help="with --mocap, the first seconds of each (0: all)")
-    smpl.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
+    _json_out(smpl)
     evaluate.set_defaults(handler=run_eval)
 
 
@@ -220,6 +220,11 @@ def _eval_pose2d(root: Path, args: argparse.Namespace) -> dict:
                            opts=opts, describe=describe)
 
 
+def _json_out(parser: argparse.ArgumentParser) -> None:
+    """--out: every eval command can also write its result as JSON (run_eval writes it)."""
+    parser.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
+
+
 def _capture_eval_options(parser: argparse.ArgumentParser, seconds: float) -> None:
     """The options every evaluation on motion capture through the corpus's path takes."""
     parser.add_argument("--mocap", type=Path, required=True, help="the motion-capture folder")
@@ -229,7 +234,7 @@ def _capture_eval_options(parser: argparse.ArgumentParser, seconds: float) -> No
     parser.add_argument("--all", action="store_true", help="use every sequence, also those the models trained on")
     parser.add_argument("--seconds", type=float, default=seconds,
                         help=f"at most this much of each sequence (default {seconds:g})")
-    parser.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
+    _json_out(parser)
 
 
 def _lift_models(root: Path, args: argparse.Namespace, contact: bool = True) -> tuple[Path, Path | None]:
