@@ -162,21 +162,23 @@ def copy_project(dest: Path) -> Path:
     return dest
 
 
+def tool_environment() -> dict[str, str]:
+    """This environment with its executables (dance3d, dvc) first on the PATH, for subprocesses."""
+    return {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
+
+
 def dvc(root: Path, *args: str) -> subprocess.CompletedProcess:
     """``dvc ARGS`` in ``root`` with this environment's executables on the PATH."""
-    bin_dir = Path(sys.executable).parent
-    env = {**os.environ, "PATH": f"{bin_dir}{os.pathsep}{os.environ['PATH']}"}
-    return subprocess.run([str(bin_dir / "dvc"), *args], cwd=root, env=env, capture_output=True, text=True)
+    return subprocess.run([str(Path(sys.executable).parent / "dvc"), *args], cwd=root, env=tool_environment(),
+                          capture_output=True, text=True)
 
 
 @pytest.fixture(scope="session")
 def built_demo(tmp_path_factory: pytest.TempPathFactory, media_dir: Path, models_dir: Path,
                mocap_dir: Path) -> Path:
     """The demo project after one `dvc repro`, built once per session and never changed: tests that
-    change it work on ``demo_copy``. Its environment is the one `make demo` gives."""
-    os.environ["DANCE3D_MODELS"] = str(models_dir)
-    os.environ["DANCE3D_MOCAP"] = str(mocap_dir)
-    os.environ["DANCE3D_MEDIA"] = str(media_dir)  # local copies of the demo's public clips
+    change it work on ``demo_copy``. The asset fixtures vouch for DANCE3D_MODELS, DANCE3D_MOCAP and
+    DANCE3D_MEDIA (local copies of the demo's public clips), which `dvc repro` inherits."""
     root = copy_project(tmp_path_factory.mktemp("demo") / "dance3d")
     # The demo's lifter: the shipped one (training it is tested in tests/motion/test_lifting.py).
     set_params(root, "train", steps=10)  # that it trains: tests/corpus measures the loss

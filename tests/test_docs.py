@@ -12,7 +12,6 @@ passed or skipped with its reason (``-ra``).
 
 from __future__ import annotations
 
-import os
 import re
 import subprocess
 import sys
@@ -21,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import PROJECT, demo_copy
+from tests.conftest import PROJECT, demo_copy, tool_environment
 
 PAGES = [PROJECT / "README.md", PROJECT / "docs/getting-started.md",
          *sorted((PROJECT / "docs/tutorials").glob("*.md")), PROJECT / "docs/quality.md"]
@@ -79,10 +78,9 @@ def run_block(block: Block, root: Path, env: dict[str, str]) -> subprocess.Compl
 
 
 def reader_environment(home: Path) -> dict[str, str]:
-    """This environment's executables first on the PATH; git, Hugging Face and matplotlib caches of
-    the test's own."""
-    bin_dir = Path(sys.executable).parent
-    return {**os.environ, "PATH": f"{bin_dir}{os.pathsep}{os.environ['PATH']}", "HF_HOME": str(home / "hf"),
+    """This environment's executables first on the PATH, a git identity, and Hugging Face and
+    matplotlib caches of the test's own."""
+    return {**tool_environment(), "HF_HOME": str(home / "hf"),
             "MPLCONFIGDIR": str(home / "mpl"), "GIT_AUTHOR_NAME": "docs test", "GIT_AUTHOR_EMAIL": "docs@test",
             "GIT_COMMITTER_NAME": "docs test", "GIT_COMMITTER_EMAIL": "docs@test", "COLUMNS": "100"}
 
