@@ -14,7 +14,6 @@ read: a training that is running goes on.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 from functools import partial
 from pathlib import Path
@@ -35,9 +34,9 @@ def main() -> None:
     import torch
 
     from pipeline.motion.lifting.evaluate import evaluate_lifter, held_out_later, split
-    from pipeline.motion.lifting.infer import load_lifter
+    from pipeline.motion.lifting.infer import Lifter, load_lifter
     from pipeline.motion.lifting.model import TemporalModel
-    from pipeline.motion.lifting.train import checkpoint_path, default_checkpoints, evaluate, load_mocap
+    from pipeline.motion.lifting.train import checkpoint_path, default_checkpoints, load_mocap
     from pipeline.motion.shipped import SHIPPED_LIFTER
 
     params = with_profile({**stage_params(load_params(Path("params.yaml")), "train_lifter"), "profile": args.profile},
@@ -53,28 +52,30 @@ def main() -> None:
     joints = 21 if cfg.feet else 17
     model = TemporalModel(joints, joints, cfg.filter_widths, cfg.channels, cfg.dropout)
     model.load_state_dict(state["model"])
-    model.eval()
     losses = state["losses"]
     print(f"{checkpoint.name}: step {state['step']} of {cfg.steps}, {state['elapsed'] / 3600:.2f} h of training; "
           f"training MPJPE over the last 1000 steps {1000 * sum(losses[-1000:]) / len(losses[-1000:]):.1f} mm")
 
-    figures = {"checkpoint": evaluate(model, val, cfg), "checkpoint_later": evaluate(model, later, cfg)["heldout"]}
-    shipped = load_lifter(str(SHIPPED_LIFTER), threads=2)
-    for name, seqs in (("shipped", val), ("shipped_later", later)):
-        result = evaluate_lifter(partial(shipped.lift, flip=True), seqs, fps=cfg.fps, max_seconds=cfg.eval_seconds,
-                                 seed=cfg.seed + 1, feet=cfg.feet)
-        figures[name] = {"val_mpjpe_mm": result["clean"]["mpjpe_mm"], "val_p_mpjpe_mm": result["clean"]["p_mpjpe_mm"],
-                         "noisy_mpjpe_mm": result["noisy"]["mpjpe_mm"],
-                         "noisy_p_mpjpe_mm": result["noisy"]["p_mpjpe_mm"], "heldout": result}
+    # Both lifters through the one protocol call: every entry is evaluate_lifter's result, per source.
+    lifters = {"checkpoint": Lifter.from_torch(model, cfg.input_norm), "shipped": load_lifter(str(SHIPPED_LIFTER), 2)}
+    figures = {}
+    for name, lifter in lifters.items():
+        for suffix, seqs in (("", val), ("_later", later)):
+            figures[name + suffix] = evaluate_lifter(partial(lifter.lift, flip=True), seqs, fps=cfg.fps,
+                                                     max_seconds=cfg.eval_seconds, seed=cfg.seed + 1, feet=cfg.feet)
     record = {"profile": args.profile, "checkpoint": checkpoint.name, "step": state["step"], "steps": cfg.steps,
               "hours": round(state["elapsed"] / 3600, 2), "figures": figures}
     out = args.out or Path(f"benchmarks/results/lifter_checkpoint_{state['step']}.json")
     write_json(out, record)
-    for name in ("checkpoint", "shipped"):
-        f = figures[name]
-        print(f"{name:>10}: MPJPE {f['val_mpjpe_mm']:.1f}  P-MPJPE {f['val_p_mpjpe_mm']:.1f}  noisy "
-              f"{f['noisy_mpjpe_mm']:.1f} / {f['noisy_p_mpjpe_mm']:.1f} mm (40 held-out sequences)")
-    print(json.dumps({k: figures[k] for k in ("checkpoint_later",)}, default=str)[:2000])
+    for suffix, title in (("", "the held-out sequences"), ("_later", "the later sources' held-out takes")):
+        print(f"\n{title}: MPJPE / P-MPJPE, clean and noisy 2D (mm)")
+        rows = {"all": {n: figures[n + suffix] for n in lifters}}
+        rows.update({source: {n: figures[n + suffix]["sources"][source] for n in lifters}
+                     for source in figures["checkpoint" + suffix]["sources"]})
+        for row, by_lifter in rows.items():
+            print(f"  {row:<24}" + "   ".join(
+                f"{n} {r['clean']['mpjpe_mm']:.1f} / {r['clean']['p_mpjpe_mm']:.1f}, "
+                f"{r['noisy']['mpjpe_mm']:.1f} / {r['noisy']['p_mpjpe_mm']:.1f}" for n, r in by_lifter.items()))
     print(f"wrote {out}")
 
 
