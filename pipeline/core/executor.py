@@ -182,7 +182,9 @@ def run_items(
     run inline until that much time has passed, and only what is left then goes to the
     workers: spawning them costs more than a few items of a light stage take.
     """
-    bar = tqdm(total=len(items), desc=desc, unit=unit, disable=not items, leave=True)
+    if not items:  # nothing to do: no worker state (models) built, no pool started
+        return
+    bar = tqdm(total=len(items), desc=desc, unit=unit, leave=True)
     try:
         if kind == "ray":
             for outcome in _run_ray(fn, items, workers, initializer, tuple(initargs), ray_options or {}, gpu):
