@@ -10,7 +10,7 @@ import pyarrow as pa
 
 from pipeline.core.errors import Dance3dError
 from pipeline.core.paths import REPORTS
-from pipeline.core.storage import write_parquet
+from pipeline.core.storage import read_rows, write_parquet
 
 FAILURES_FILE = "_failures.parquet"
 
@@ -41,9 +41,10 @@ def write_failures(folder: Path, stage: str, failures: list[Failure], total: int
     """
     columns = ["item", "stage", "error_class", "message", "time"]
     rows = [asdict(f) for f in sorted(failures, key=lambda f: f.item)]
-    table = pa.table({c: pa.array([r[c] for r in rows], pa.string()) for c in columns})
     path = Path(folder) / FAILURES_FILE
-    write_parquet(table, path, schema_version=1, extra={"stage": stage})
+    if not (path.exists() and read_rows(path) == rows):  # the same rows are not rewritten (pyarrow imports pandas)
+        table = pa.table({c: pa.array([r[c] for r in rows], pa.string()) for c in columns})
+        write_parquet(table, path, schema_version=1, extra={"stage": stage})
     if total is not None:
         from pipeline.core.storage import write_json
 
@@ -57,10 +58,8 @@ def write_failures(folder: Path, stage: str, failures: list[Failure], total: int
 
 
 def read_failures(folder: Path) -> list[Failure]:
-    import pyarrow.parquet as pq
-
     path = Path(folder) / FAILURES_FILE
-    return [Failure(**row) for row in pq.read_table(path).to_pylist()] if path.exists() else []
+    return [Failure(**row) for row in read_rows(path)] if path.exists() else []
 
 
 def check_failure_ratio(stage: str, failed: int, total: int, max_ratio: float) -> None:

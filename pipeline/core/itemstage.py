@@ -6,12 +6,14 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import dataclasses
 import functools
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
+from pipeline.core.deferred import make_payload, resolve
 from pipeline.core.executor import run_items, with_state
 from pipeline.core.failures import Failure, check_failure_ratio, now, read_failures, write_failures
 from pipeline.core.storage import read_meta, remove_stale_temps
@@ -41,7 +43,7 @@ class WorkItem:
     item_id: str
     fingerprint: str          # of the inputs and params that make this item's output
     outputs: tuple[Path, ...]  # the first is a Parquet file carrying the fingerprint in its metadata
-    payload: Any              # what the worker function needs (a frozen dataclass: the job)
+    payload: Any              # what the worker function needs (a frozen dataclass: the job), or a Deferred one
     where: str = ""           # where a user finds the item (file:line), prefixed to its failure message
     size: float = 0.0         # how much work it is (e.g. seconds of video): the largest start first
 
@@ -65,12 +67,12 @@ def is_up_to_date(item: WorkItem) -> bool:
 def run_item_stage(
     stage: str,
     items: list[WorkItem],
-    fn: Callable[[Any], Any],
+    fn: Callable[[Any], Any] | str,
     *,
     out_dirs: Iterable[Path],
     params: dict,
     kind: str = "process",
-    setup: Callable[..., Any] | None = None,
+    setup: Callable[..., Any] | str | None = None,
     setup_args: tuple = (),
     unit: str = "segment",
     gpu: bool = False,
@@ -84,7 +86,9 @@ def run_item_stage(
     ``up_to_date`` decides what is skipped (default: the first output's fingerprint);
     ``keep_files`` names stage files in ``out_dirs`` that are not item outputs (e.g. an index);
     ``finish(report)`` runs before the failure ratio is checked, so what was done is kept;
-    ``light``: the first items run in this process (``LIGHT_INLINE_SECONDS``), not in workers."""
+    ``light``: the first items run in this process (``LIGHT_INLINE_SECONDS``), not in workers.
+    ``fn`` and ``setup`` may be named ``"module:attribute"`` and payloads may be ``Deferred``
+    (pipeline/core/deferred.py): they are imported and made only if some item is to be done."""
     out_dirs = list(out_dirs)
     only = _ONLY.get()
     for folder in out_dirs:
@@ -103,6 +107,9 @@ def run_item_stage(
     log.info("%s: %d items, %d up to date, %d to do", stage, len(items), len(report.skipped), len(todo))
     # Largest first: a long video started last would leave the other workers idle while it runs.
     todo.sort(key=lambda item: -item.size)
+    if todo:
+        fn, setup = resolve(fn), (resolve(setup) if setup is not None else None)
+        todo = [dataclasses.replace(item, payload=make_payload(item.payload)) for item in todo]
     executor = str(params.get("executor", "local"))
     if executor not in ("local", "ray"):
         raise ValueError(f"{stage}: executor must be local or ray, not {executor!r}")

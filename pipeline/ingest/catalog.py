@@ -7,9 +7,8 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import pyarrow as pa
-import pyarrow.parquet as pq
 
-from pipeline.core.storage import write_parquet
+from pipeline.core.storage import read_rows, write_rows
 
 DISCOVERED = "videos.parquet"
 DISCOVERED_VERSION = 1
@@ -58,7 +57,7 @@ def read_discovered(catalog_dir: Path) -> dict[str, list[dict]]:
     path = Path(catalog_dir) / DISCOVERED
     lists: dict[str, list[dict]] = {}
     if path.exists():
-        for row in pq.read_table(path).to_pylist():
+        for row in read_rows(path):
             lists.setdefault(row["list_url"], []).append(row)
     return lists
 
@@ -66,29 +65,27 @@ def read_discovered(catalog_dir: Path) -> dict[str, list[dict]]:
 def write_discovered(catalog_dir: Path, rows: list[dict], params: Mapping[str, Any]) -> None:
     """Lists in sources.csv order, entries in position order. No timestamps: an unchanged feed
     gives a byte-identical file, so DVC re-runs nothing downstream."""
-    write_parquet(pa.Table.from_pylist(rows, schema=DISCOVERED_SCHEMA), Path(catalog_dir) / DISCOVERED,
-                  schema_version=DISCOVERED_VERSION, params=params)
+    write_rows(rows, DISCOVERED_SCHEMA, Path(catalog_dir) / DISCOVERED, schema_version=DISCOVERED_VERSION,
+               params=params)
 
 
 def read_ledger(raw_dir: Path) -> dict[str, dict]:
     """The download ledger by url ({} when there is none)."""
     path = Path(raw_dir) / LEDGER
-    return {row["url"]: row for row in pq.read_table(path).to_pylist()} if path.exists() else {}
+    return {row["url"]: row for row in read_rows(path)} if path.exists() else {}
 
 
 def write_ledger(raw_dir: Path, rows: list[dict], params: Mapping[str, Any]) -> None:
     """One row per source, in sources.csv order."""
-    write_parquet(pa.Table.from_pylist(rows, schema=LEDGER_SCHEMA), Path(raw_dir) / LEDGER,
-                  schema_version=LEDGER_VERSION, params=params)
+    write_rows(rows, LEDGER_SCHEMA, Path(raw_dir) / LEDGER, schema_version=LEDGER_VERSION, params=params)
 
 
 def read_index(seg_dir: Path) -> dict[str, dict]:
     """The segment index by segment id, in index order ({} when there is none)."""
     path = Path(seg_dir) / INDEX
-    return {r["segment_id"]: r for r in pq.read_table(path).to_pylist()} if path.exists() else {}
+    return {r["segment_id"]: r for r in read_rows(path)} if path.exists() else {}
 
 
 def write_index(seg_dir: Path, rows: list[dict], params: Mapping[str, Any]) -> None:
     """One row per segment, in plan order; ``fingerprint`` is each segment's up-to-date key."""
-    write_parquet(pa.Table.from_pylist(rows, schema=INDEX_SCHEMA), Path(seg_dir) / INDEX,
-                  schema_version=INDEX_VERSION, params=params)
+    write_rows(rows, INDEX_SCHEMA, Path(seg_dir) / INDEX, schema_version=INDEX_VERSION, params=params)
