@@ -35,9 +35,9 @@ CONFIGS = (("onnxruntime", "f32"), ("openvino", "f32"), ("openvino", "bf16"))
 
 
 def _unused(kind: str):
-    from pipeline.pose.models.loading import UNUSED_OUTPUTS
+    from pipeline.pose.models.loading import unused_outputs
 
-    return UNUSED_OUTPUTS.get(kind)
+    return unused_outputs(kind)
 
 
 def _feed(session, image: np.ndarray, size: tuple[int, int]) -> dict:

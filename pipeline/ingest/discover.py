@@ -17,10 +17,6 @@ import time
 from dataclasses import dataclass, replace
 from typing import Any, Iterable, Iterator
 
-import yt_dlp
-import yt_dlp.extractor
-from yt_dlp.utils import unsmuggle_url
-
 from pipeline.core.errors import RateLimitedError
 from pipeline.core.ids import slug_id
 from pipeline.core.paths import SOURCES
@@ -73,17 +69,23 @@ def is_list_url(url: str) -> bool:
     """True when yt-dlp knows ``url`` as a channel or playlist (YouTube, Vimeo, TikTok ...).
 
     A feed on any other site (RSS, Atom, XSPF) is not recognisable from its URL: mark its
-    row with ``kind=list`` in sources.csv.
+    row with ``kind=list`` in sources.csv. The first call compiles yt-dlp's URL patterns (0.3 s).
     """
+    import yt_dlp.extractor  # here: a stage with nothing to fetch need not import yt-dlp
+
     for ie in yt_dlp.extractor.gen_extractor_classes():
         if ie.ie_key() != "Generic" and ie.suitable(url):
             return ie._RETURN_TYPE in ("playlist", "any")
     return False
 
 
-def is_list_source(source: Source) -> bool:
+def is_list_source(source: Source, lists: Iterable[str] = (), videos: Iterable[str] = ()) -> bool:
+    """Whether ``source`` is a channel, playlist or feed: its ``kind``, else whether it is among the
+    ``lists`` already discovered or the ``videos`` already downloaded, else what yt-dlp knows of its URL."""
     if source.kind:
         return source.kind == "list"
+    if source.url in lists or source.url in videos:
+        return source.url in lists
     return not source.url_error and is_list_url(source.url)
 
 
@@ -97,6 +99,8 @@ def _date(info: dict[str, Any]) -> str:
 
 
 def _entry(raw: dict[str, Any], feed: dict[str, Any]) -> Entry | None:
+    from yt_dlp.utils import unsmuggle_url
+
     url, smuggled = unsmuggle_url(str(raw.get("url") or raw.get("webpage_url") or ""), {})
     if not url:
         return None
@@ -137,6 +141,8 @@ def list_entries(url: str, opts: DownloadOptions, known: set[str] = frozenset(),
     channels list newest first, so a re-run reads one page, not the whole channel.
     Raises RateLimitedError when the site throttles us, RuntimeError for any other failure.
     """
+    import yt_dlp
+
     for attempt in range(1, max(1, opts.retries) + 1):
         try:
             with yt_dlp.YoutubeDL(_ytdlp_options(opts)) as ydl:

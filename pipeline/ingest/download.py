@@ -12,8 +12,6 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yt_dlp
-
 from pipeline.core.errors import MediaError, RateLimitedError
 from pipeline.core.ids import check_id, slug_id
 from pipeline.core.storage import sha256_file
@@ -182,6 +180,8 @@ def download_source(source: Source, raw_dir: Path, opts: DownloadOptions,
     info: dict[str, Any] | None = None
     url = local_copy.absolute().as_uri() if local_copy else source.url
     ytdlp_opts = dataclasses.replace(opts, allow_file_urls=True) if local_copy else opts
+    import yt_dlp  # here: a stage with nothing to download need not import it
+
     for attempt in range(1, max(1, opts.retries) + 1):
         row.attempts = attempt
         shutil.rmtree(stage, ignore_errors=True)

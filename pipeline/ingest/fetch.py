@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from pipeline.core.errors import RateLimitedError
@@ -27,15 +27,17 @@ def is_done(row: dict | None, raw_dir: Path) -> bool:
     return media.is_file() and media.stat().st_size == row["size"]
 
 
-def expand_sources(sources: list[Source], discovered: dict[str, list[dict]]) -> list[Source]:
+def expand_sources(sources: list[Source], discovered: dict[str, list[dict]],
+                   downloaded: Iterable[str] = ()) -> list[Source]:
     """Video rows as they are; each list row replaced by its selected catalogue entries, in order.
+    A URL ``discovered`` is a list and one already ``downloaded`` a video, without asking yt-dlp.
 
     A video listed twice (a direct row and a list, or two lists) is fetched once, for its first row.
     """
     out: list[Source] = []
     seen: set[str] = set()
     for source in sources:
-        if not is_list_source(source):
+        if not is_list_source(source, discovered, downloaded):
             expanded = [source]
         elif source.url in discovered:
             expanded = entry_sources(source, discovered[source.url])

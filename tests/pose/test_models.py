@@ -252,11 +252,11 @@ def test_openvino_runs_the_models_as_onnx_runtime_does_in_f32(models_dir: Path) 
 import json
 from pathlib import Path
 import numpy as np
-from pipeline.pose.models.loading import UNUSED_OUTPUTS
+from pipeline.pose.models.loading import unused_outputs
 from pipeline.pose.models.session import create_session
 rng, out = np.random.default_rng(0), {{}}
 for name, kind in (("tinypose_256x192.onnx", "tinypose"), ("blazepose_full.onnx", "blazepose")):
-    pair = [create_session(Path({str(models_dir)!r}) / name, 1, unused_outputs=UNUSED_OUTPUTS.get(kind),
+    pair = [create_session(Path({str(models_dir)!r}) / name, 1, unused_outputs=unused_outputs(kind),
                            runtime=runtime) for runtime in ("onnxruntime", "openvino")]
     port = pair[0].get_inputs()[0]
     feed = {{port.name: rng.uniform(0, 1, port.shape).astype(np.float32)}}

@@ -28,7 +28,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import urlparse
 
-import cv2
 import numpy as np
 
 from pipeline.core.errors import ModelMissingError
@@ -200,6 +199,8 @@ def fetch_route(route: Route, target: Path) -> None:
 
 def figure_image(width: int = 320, height: int = 320) -> np.ndarray:
     """A deterministic synthetic test card: a person-like figure on a colour gradient (BGR)."""
+    import cv2  # here: resolving a model file needs no OpenCV
+
     y, x = np.mgrid[0:height, 0:width]
     image = np.stack([x * 255 // width, y * 255 // height, np.full_like(x, 90)], -1).astype(np.uint8)
     s, cx = height / 320, width // 2

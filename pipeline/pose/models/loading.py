@@ -3,19 +3,22 @@ is one clear error up front), which runtime and precision each runs in (``sessio
 and one worker's sessions built from them (``load_pose_models``), reused for every segment.
 
 Model loading lives beside the models rather than in ``pose2d.py``: how a model is loaded is not
-what pose2d computes, and a change here does not change pose2d's code fingerprint.
+what pose2d computes, and a change here does not change pose2d's code fingerprint. The model
+wrappers (OpenCV) and pose2d (SciPy) are imported only to load models: a stage with nothing to do
+needs the files' hashes (``model_hashes``), not the models.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from pipeline.core.errors import InputError
-from pipeline.pose.models.detector import FusedDetector, PicoDetDetector, RTMDetDetector
-from pipeline.pose.models.pose import BlazePose, BodyAndFeet, MoveNetPose, RTMPose, TinyPose
 from pipeline.pose.models.session import CUDA, choose_runtime, create_session, providers, runtime_label
-from pipeline.pose.pose2d import Pose2dOptions, PoseModels
+
+if TYPE_CHECKING:
+    from pipeline.pose.pose2d import PoseModels
 
 DEFAULT_DETECTOR = "rtmdet-nano-person"
 DEFAULT_POSE_MODEL = "movenet-lightning"
@@ -43,7 +46,13 @@ def model_names(value: str | list[str]) -> list[str]:
     return [n.strip() for n in names if n.strip()]
 
 
-def model_files(root: Path, params: dict) -> tuple[ModelFiles, dict[str, str]]:
+def model_hashes(root: Path, params: dict) -> dict[str, str]:
+    """What the models are, as an input of every file they make: each file's SHA-256, and the runtime
+    where it is not ONNX Runtime's f32 (it computes other numbers). Checks what ``model_files`` checks."""
+    return model_files(root, params, sessions=False)[1]
+
+
+def model_files(root: Path, params: dict, sessions: bool = True) -> tuple[ModelFiles, dict[str, str]]:
     """Resolve every model in the main process, so a missing one is one clear error up front."""
     from pipeline.core.storage import sha256_file
     from pipeline.pose.models.fetch import resolve_model
@@ -62,20 +71,31 @@ def model_files(root: Path, params: dict) -> tuple[ModelFiles, dict[str, str]]:
     except (ValueError, RuntimeError) as exc:
         raise InputError(root / "params.yaml", f"pose2d.{exc}") from None
     other = {name: label for name in paths if (label := runtime_label(*chosen[name]))}  # not ONNX Runtime f32
+    hashes = {name: sha256_file(path) for name, path in paths.items()}
+    hashes.update({f"{name}@runtime": label for name, label in other.items()})
+    if not sessions:
+        return ModelFiles((), ()), hashes
+    from pipeline.pose.pose2d import Pose2dOptions
+
     files = ModelFiles(tuple((str(paths[d.name]), d.kind, d.input_size) for d in dets),
                        tuple((str(paths[p.name]), p.kind, p.input_size) for p in poses),
                        int(params.get("threads", 1)), Pose2dOptions.from_params(params).detector_floor,
                        float(params.get("crop_padding", 1.25)), device,
                        tuple((str(paths[name]), *chosen[name]) for name in other))
-    # A runtime other than ONNX Runtime's f32 computes other numbers: it is an input of every file.
-    hashes = {name: sha256_file(path) for name, path in paths.items()}
-    hashes.update({f"{name}@runtime": label for name, label in other.items()})
     return files, hashes
 
 
-POSE_WRAPPERS = {"movenet": MoveNetPose, "rtmpose": RTMPose, "tinypose": TinyPose, "blazepose": BlazePose}
 BATCHED_KINDS = ("tinypose", "blazepose")  # published with a batch of 1: on a GPU, edited to take a frame's crops
-UNUSED_OUTPUTS = {"blazepose": BlazePose.unused_output}  # removed from the graph at load (pruning.without_outputs)
+
+
+def unused_outputs(kind: str):
+    """Which outputs of a model of ``kind`` are removed from its graph at load (pruning.without_outputs):
+    BlazePose's segmentation mask, half of its cost."""
+    if kind != "blazepose":
+        return None
+    from pipeline.pose.models.pose import BlazePose
+
+    return BlazePose.unused_output
 
 
 def batch_crops(device: str) -> bool:
@@ -87,6 +107,11 @@ def batch_crops(device: str) -> bool:
 
 def load_pose_models(files: ModelFiles) -> PoseModels:
     """One worker's sessions, built once and reused for every segment it gets."""
+    from pipeline.pose.models.detector import FusedDetector, PicoDetDetector, RTMDetDetector
+    from pipeline.pose.models.pose import BlazePose, BodyAndFeet, MoveNetPose, RTMPose, TinyPose
+    from pipeline.pose.pose2d import PoseModels
+
+    wrappers = {"movenet": MoveNetPose, "rtmpose": RTMPose, "tinypose": TinyPose, "blazepose": BlazePose}
     detectors = []
     for path, kind, size in files.detectors:
         runtime, precision = files.runtime(path)
@@ -100,11 +125,11 @@ def load_pose_models(files: ModelFiles) -> PoseModels:
     detector = detectors[0] if len(detectors) == 1 else FusedDetector(detectors)
     poses = []
     for path, kind, size in files.poses:
-        if kind not in POSE_WRAPPERS:
+        if kind not in wrappers:
             raise ValueError(f"model kind {kind!r} is not a 2D pose model")
         batched = kind in BATCHED_KINDS and batch_crops(files.device)
         runtime, precision = files.runtime(path)
-        session = create_session(Path(path), files.threads, any_batch=batched, unused_outputs=UNUSED_OUTPUTS.get(kind),
+        session = create_session(Path(path), files.threads, any_batch=batched, unused_outputs=unused_outputs(kind),
                                  device=files.device, runtime=runtime, precision=precision)
-        poses.append(POSE_WRAPPERS[kind](session, size, files.crop_padding))
+        poses.append(wrappers[kind](session, size, files.crop_padding))
     return PoseModels(detector, poses[0] if len(poses) == 1 else BodyAndFeet(*poses))
