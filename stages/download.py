@@ -26,12 +26,13 @@ log = logging.getLogger("dance3d.download")
 def run(root: Path) -> None:
     params = stage_params(load_params(root / "params.yaml"), "download")
     opts = DownloadOptions.from_params(params)
-    sources = expand_sources(read_sources(root / SOURCES, base_dir=root, allow_file_urls=opts.allow_file_urls),
-                             read_discovered(root / CATALOG))
     raw_dir = root / RAW
     raw_dir.mkdir(parents=True, exist_ok=True)
     remove_stale_temps(raw_dir)
     previous = read_ledger(raw_dir)
+    downloaded = {url for url, row in previous.items() if row["status"] == "ok"}
+    sources = expand_sources(read_sources(root / SOURCES, base_dir=root, allow_file_urls=opts.allow_file_urls),
+                             read_discovered(root / CATALOG), downloaded)
     rows = {s.url: previous[s.url] for s in sources if is_done(previous.get(s.url), raw_dir)}
     todo = [s for s in sources if s.url not in rows]
     log.info("%d sources: %d already downloaded, %d to fetch", len(sources), len(rows), len(todo))

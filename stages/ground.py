@@ -7,32 +7,18 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import pipeline.motion.smpl.kinematics
-import pipeline.motion.smpl.retarget
-import pipeline.motion.smpl.skeleton
-import pipeline.motion.world.bones
-import pipeline.motion.world.contact
-import pipeline.motion.world.gravity
-import pipeline.motion.world.grounding
-import pipeline.motion.world.rotations
-import pipeline.motion.world.scene
-import pipeline.motion.world.segment
-import pipeline.motion.world.trajectory
-import pipeline.motion.world.worldfile
+from pipeline.core.deferred import Deferred
 from pipeline.core.itemstage import WorkItem, run_item_stage
 from pipeline.core.params import load_params, stage_params
 from pipeline.core.paths import MOTION24, WORLD
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta
 from pipeline.motion.world.contact import HOLD_PROBABILITY, MIN_PLANTED_FRAMES, PLANTED_PROBABILITY
-from pipeline.motion.world.segment import GroundJob, ground_segment
 from pipeline.motion.world.worldfile import SCHEMA_VERSION
 
-CODE = code_fingerprint(pipeline.motion.world.grounding, pipeline.motion.world.contact, pipeline.motion.world.gravity,
-                        pipeline.motion.world.trajectory, pipeline.motion.world.rotations,
-                        pipeline.motion.world.worldfile, pipeline.motion.world.scene, pipeline.motion.world.bones,
-                        pipeline.motion.world.segment, pipeline.motion.smpl.retarget, pipeline.motion.smpl.kinematics,
-                        pipeline.motion.smpl.skeleton)
+CODE = code_fingerprint(*(f"pipeline.motion.world.{name}" for name in (
+    "grounding", "contact", "gravity", "trajectory", "rotations", "worldfile", "scene", "bones", "segment")),
+    "pipeline.motion.smpl.retarget", "pipeline.motion.smpl.kinematics", "pipeline.motion.smpl.skeleton")
 
 
 def run(root: Path) -> None:
@@ -42,11 +28,13 @@ def run(root: Path) -> None:
         inputs = {"motion24": read_meta(src).get("fingerprint", "")}
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out = root / WORLD / src.name
-        job = GroundJob(src, out, float(params.get("contact_threshold", PLANTED_PROBABILITY)),
-                        int(params.get("min_contact_frames", MIN_PLANTED_FRAMES)),
-                        float(params.get("contact_hold", HOLD_PROBABILITY)), params, inputs, fp)
+        job = Deferred("pipeline.motion.world.segment:GroundJob", (
+            src, out, float(params.get("contact_threshold", PLANTED_PROBABILITY)),
+            int(params.get("min_contact_frames", MIN_PLANTED_FRAMES)),
+            float(params.get("contact_hold", HOLD_PROBABILITY)), params, inputs, fp))
         items.append(WorkItem(src.stem, fp, (out,), job))
-    run_item_stage("ground", items, ground_segment, out_dirs=[root / WORLD], params=params, light=True)
+    run_item_stage("ground", items, "pipeline.motion.world.segment:ground_segment", out_dirs=[root / WORLD],
+                   params=params, light=True)
 
 
 def main() -> int:

@@ -5,20 +5,17 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import pipeline.motion.lifting.infer
-import pipeline.motion.world.contact_model
-import pipeline.motion.world.trajectory
+from pipeline.core.deferred import Deferred
 from pipeline.core.errors import ModelMissingError
 from pipeline.core.itemstage import WorkItem, run_item_stage
 from pipeline.core.params import load_params, stage_params
 from pipeline.core.paths import CLEAN, POSE3D
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta, sha256_file
-from pipeline.motion.lifting.infer import LiftJob, lift_segment, load_models
 from pipeline.motion.motionfile import SCHEMA_VERSION
 
-CODE = code_fingerprint(pipeline.motion.lifting.infer, pipeline.motion.world.contact_model,
-                        pipeline.motion.world.trajectory)  # the root path and the sight rays
+CODE = code_fingerprint("pipeline.motion.lifting.infer", "pipeline.motion.world.contact_model",
+                        "pipeline.motion.world.trajectory")  # the root path and the sight rays
 
 
 def run(root: Path) -> None:
@@ -39,11 +36,13 @@ def run(root: Path) -> None:
                   "contact_model": contact_hash}
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out = root / POSE3D / clean_file.name
-        job = LiftJob(clean_file, out, float(params.get("min_score", 0.3)), bool(params.get("flip_tta", True)),
-                      params, inputs, fp)
+        job = Deferred("pipeline.motion.lifting.infer:LiftJob", (
+            clean_file, out, float(params.get("min_score", 0.3)), bool(params.get("flip_tta", True)),
+            params, inputs, fp))
         items.append(WorkItem(clean_file.stem, fp, (out,), job))
-    run_item_stage("lift", items, lift_segment, out_dirs=[root / POSE3D], params=params,
-                   setup=load_models, setup_args=(str(model), str(contact or ""), int(params.get("threads", 1))),
+    run_item_stage("lift", items, "pipeline.motion.lifting.infer:lift_segment", out_dirs=[root / POSE3D],
+                   params=params, setup="pipeline.motion.lifting.infer:load_models",
+                   setup_args=(str(model), str(contact or ""), int(params.get("threads", 1))),
                    gpu=True, light=True)
 
 

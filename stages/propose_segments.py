@@ -8,24 +8,22 @@ mode shows them to the annotator.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import sys
 from pathlib import Path
 
-import pipeline.pose.propose
-from pipeline.core.itemstage import WorkItem, run_item_stage
+from pipeline.core.deferred import Deferred
+from pipeline.core.itemstage import WorkItem, is_up_to_date, run_item_stage
 from pipeline.core.params import load_params, stage_params
 from pipeline.core.paths import RAW, SEGMENT_PROPOSALS
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint, item_files
 from pipeline.ingest.catalog import read_ledger
-from pipeline.pose.models.loading import load_pose_models, model_files, model_names
-from pipeline.pose.pose2d import Pose2dOptions
-from pipeline.pose.propose import SCHEMA_VERSION, SUMMARY, ProposeJob, ProposeOptions, propose_video, write_summary
+from pipeline.pose.models.loading import model_files, model_hashes, model_names
+from pipeline.pose.propose import SCHEMA_VERSION, SUMMARY, ProposeOptions, propose_video, write_summary
 
 log = logging.getLogger("dance3d.propose_segments")
-CODE = code_fingerprint(pipeline.pose.propose)
+CODE = code_fingerprint("pipeline.pose.propose")
 
 
 def run(root: Path) -> None:
@@ -34,17 +32,19 @@ def run(root: Path) -> None:
     pose_params = stage_params(all_params, "pose2d")
     # The body model is enough to see who moves; pose2d's detector and people rules say who is a person.
     pose_params = {**pose_params, "pose_model": model_names(pose_params.get("pose_model", ""))[0]}
-    files, model_hashes = model_files(root, pose_params)
+    hashes = model_hashes(root, pose_params)
     opts = ProposeOptions.from_params(params)
-    pose_opts = dataclasses.replace(Pose2dOptions.from_params(pose_params), confirm_score=0.0)
+    pose_opts = Deferred("dataclasses:replace", (Deferred("pipeline.pose.pose2d:Pose2dOptions.from_params",
+                                                          (pose_params,)),), {"confirm_score": 0.0})
     rules = {k: pose_params.get(k) for k in ("detector", "pose_model", "det_score", "min_joints", "dark_mean")}
     items = []
     for row in read_ledger(root / RAW).values():
         if row["status"] != "ok":
             continue
         out = root / SEGMENT_PROPOSALS / f"{row['video_id']}.parquet"
-        fp = fingerprint(SCHEMA_VERSION, row["sha256"], model_hashes, params, rules, CODE)
-        job = ProposeJob(row["video_id"], root / RAW / row["path"], out, opts, pose_opts, params, fp)
+        fp = fingerprint(SCHEMA_VERSION, row["sha256"], hashes, params, rules, CODE)
+        job = Deferred("pipeline.pose.propose:ProposeJob",
+                       (row["video_id"], root / RAW / row["path"], out, opts, pose_opts, params, fp))
         items.append(WorkItem(row["video_id"], fp, (out,), job, size=float(row.get("duration") or 0.0)))
 
     def summary(report) -> None:
@@ -53,8 +53,10 @@ def run(root: Path) -> None:
             log.info("%s: %d proposed segments, %.1f of %.1f s", video_id, r["segments"], r["seconds"], r["duration"])
         log.info("proposals of every video: %s", path.relative_to(root))
 
+    files = None if all(is_up_to_date(item) for item in items) else model_files(root, pose_params)[0]
     run_item_stage("propose_segments", items, propose_video, out_dirs=[root / SEGMENT_PROPOSALS], params=params,
-                   setup=load_pose_models, setup_args=(files,), unit="video", keep_files=frozenset({SUMMARY}),
+                   setup="pipeline.pose.models.loading:load_pose_models", setup_args=(files,), unit="video",
+                   keep_files=frozenset({SUMMARY}),
                    finish=summary)
 
 

@@ -6,16 +6,15 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import pipeline.motion.resample
+from pipeline.core.deferred import Deferred
 from pipeline.core.itemstage import WorkItem, run_item_stage
 from pipeline.core.params import corpus_fps, load_params, stage_params
 from pipeline.core.paths import MOTION24, SMOOTH
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta
 from pipeline.motion.motionfile import SCHEMA_VERSION
-from pipeline.motion.resample import ResampleJob, resample_segment
 
-CODE = code_fingerprint(pipeline.motion.resample)
+CODE = code_fingerprint("pipeline.motion.resample")
 
 
 def run(root: Path) -> None:
@@ -26,8 +25,10 @@ def run(root: Path) -> None:
         inputs = {"smooth": read_meta(src).get("fingerprint", "")}
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out = root / MOTION24 / src.name
-        items.append(WorkItem(src.stem, fp, (out,), ResampleJob(src, out, params["fps"], params, inputs, fp)))
-    run_item_stage("resample", items, resample_segment, out_dirs=[root / MOTION24], params=params, light=True)
+        job = Deferred("pipeline.motion.resample:ResampleJob", (src, out, params["fps"], params, inputs, fp))
+        items.append(WorkItem(src.stem, fp, (out,), job))
+    run_item_stage("resample", items, "pipeline.motion.resample:resample_segment", out_dirs=[root / MOTION24],
+                   params=params, light=True)
 
 
 def main() -> int:

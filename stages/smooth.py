@@ -6,8 +6,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import pipeline.motion.quality
-import pipeline.motion.smoothing
+from pipeline.core.deferred import Deferred
 from pipeline.core.itemstage import WorkItem, run_item_stage
 from pipeline.core.metrics import write_metrics
 from pipeline.core.params import load_params, stage_params
@@ -15,9 +14,8 @@ from pipeline.core.paths import POSE3D, SMOOTH
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta
 from pipeline.motion.motionfile import SCHEMA_VERSION
-from pipeline.motion.smoothing import SmoothJob, smooth_segment
 
-CODE = code_fingerprint(pipeline.motion.smoothing, pipeline.motion.quality)
+CODE = code_fingerprint("pipeline.motion.smoothing", "pipeline.motion.quality")
 
 
 def run(root: Path) -> None:
@@ -28,8 +26,10 @@ def run(root: Path) -> None:
         inputs = {"pose3d": read_meta(src).get("fingerprint", "")}
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out = root / SMOOTH / src.name
-        items.append(WorkItem(src.stem, fp, (out,), SmoothJob(src, out, lamb, params, inputs, fp)))
-    run_item_stage("smooth", items, smooth_segment, out_dirs=[root / SMOOTH], params=params, light=True)
+        job = Deferred("pipeline.motion.smoothing:SmoothJob", (src, out, lamb, params, inputs, fp))
+        items.append(WorkItem(src.stem, fp, (out,), job))
+    run_item_stage("smooth", items, "pipeline.motion.smoothing:smooth_segment", out_dirs=[root / SMOOTH],
+                   params=params, light=True)
     write_motion_metrics(root)
 
 

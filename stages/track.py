@@ -6,12 +6,9 @@ data/qc/<segment_id>.mp4 only with track.qc_videos: QC videos are otherwise made
 from __future__ import annotations
 
 import sys
-from dataclasses import asdict
 from pathlib import Path
 
-import pipeline.pose.qc
-import pipeline.pose.trackfile
-import pipeline.pose.tracking
+from pipeline.core.deferred import Deferred
 from pipeline.core.itemstage import WorkItem, run_item_stage
 from pipeline.core.params import load_params, stage_params
 from pipeline.core.paths import POSE2D, QC, RAW, SEGMENTS, TRACKS
@@ -20,14 +17,13 @@ from pipeline.core.storage import code_fingerprint, fingerprint, read_meta
 from pipeline.ingest.catalog import read_index
 from pipeline.ingest.segmentvideo import SegmentVideo
 from pipeline.pose.trackfile import SCHEMA_VERSION
-from pipeline.pose.tracking import TrackerOptions, TrackJob, track_segment
 
-CODE = code_fingerprint(pipeline.pose.tracking, pipeline.pose.qc, pipeline.pose.trackfile)
+CODE = code_fingerprint("pipeline.pose.tracking", "pipeline.pose.qc", "pipeline.pose.trackfile")
 
 
 def run(root: Path) -> None:
     params = stage_params(load_params(root / "params.yaml"), "track")
-    opts = TrackerOptions(**{k: params[k] for k in asdict(TrackerOptions()) if k in params})
+    opts = Deferred("pipeline.core.deferred:options_from_params", ("pipeline.pose.tracking:TrackerOptions", params))
     qc_enabled = bool(params.get("qc_videos", False))  # else made on request (review page, `dance3d qc`)
     items = []
     for seg_id, seg in read_index(root / SEGMENTS).items():
@@ -37,9 +33,11 @@ def run(root: Path) -> None:
         fp = fingerprint(SCHEMA_VERSION, read_meta(pose_file).get("fingerprint"), params, CODE)
         out = root / TRACKS / f"{seg_id}.parquet"
         qc_out = root / QC / f"{seg_id}.mp4" if qc_enabled else None
-        job = TrackJob(pose_file, out, qc_out, SegmentVideo.from_index(root / RAW, seg), opts, params, fp)
+        job = Deferred("pipeline.pose.tracking:TrackJob",
+                       (pose_file, out, qc_out, SegmentVideo.from_index(root / RAW, seg), opts, params, fp))
         items.append(WorkItem(seg_id, fp, (out, qc_out) if qc_out else (out,), job))
-    run_item_stage("track", items, track_segment, out_dirs=[root / TRACKS, *([root / QC] if qc_enabled else [])],
+    run_item_stage("track", items, "pipeline.pose.tracking:track_segment",
+                   out_dirs=[root / TRACKS, *([root / QC] if qc_enabled else [])],
                    params=params, light=not qc_enabled)  # QC videos are the heavy part
 
 
