@@ -71,6 +71,8 @@ def is_list_url(url: str) -> bool:
     A feed on any other site (RSS, Atom, XSPF) is not recognisable from its URL: mark its
     row with ``kind=list`` in sources.csv. The first call compiles yt-dlp's URL patterns (0.3 s).
     """
+    if not url.lower().startswith(("http://", "https://")):
+        return False  # a local file is one video
     import yt_dlp.extractor  # here: a stage with nothing to fetch need not import yt-dlp
 
     for ie in yt_dlp.extractor.gen_extractor_classes():

@@ -157,6 +157,7 @@ def test_list_rows_are_recognised_and_checked(project: Path) -> None:
     assert is_list_url("https://www.youtube.com/playlist?list=PL0123456789")
     assert not is_list_url("https://www.youtube.com/watch?v=dQw4w9WgXcQ")
     assert not is_list_url("https://example.org/clip.mp4")
+    assert not is_list_url("file:///data/videos/clip.mp4")  # a local file is one video, without asking yt-dlp
     path = project / "manifests/sources.csv"
     path.write_text("url,kind,video_id\nhttps://example.org/feed.xml,list,crew\n")
     with pytest.raises(InputError, match=r"sources.csv:2: a list row \(kind=list\) names many videos"):
