@@ -21,7 +21,10 @@ endif
 ifneq ($(wildcard ../shared/pose2d_eval),)
 DANCE3D_POSE2D_EVAL ?= $(abspath ../shared/pose2d_eval)
 endif
-export DANCE3D_MEDIA DANCE3D_MODELS DANCE3D_MOCAP DANCE3D_POSE2D_EVAL
+ifneq ($(wildcard ../shared/hand_eval),)
+DANCE3D_HAND_EVAL ?= $(abspath ../shared/hand_eval)
+endif
+export DANCE3D_MEDIA DANCE3D_MODELS DANCE3D_MOCAP DANCE3D_POSE2D_EVAL DANCE3D_HAND_EVAL
 
 .PHONY: setup lock demo models test test-fast docs browser clean-demo
 

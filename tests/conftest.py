@@ -148,6 +148,25 @@ def pose2d_eval_dir() -> Path:
     return _asset_dir("DANCE3D_POSE2D_EVAL", "annotations.json")
 
 
+@pytest.fixture(scope="session")
+def hand_eval_dir() -> Path:
+    """Annotated hand images (annotations.json + images/, hand_eval's layout) for `eval hands`."""
+    return _asset_dir("DANCE3D_HAND_EVAL", "annotations.json")
+
+
+@pytest.fixture(scope="session")
+def hand_model() -> Path:
+    """MediaPipe's hand landmark model, fetched from the pinned mediapipe wheel and converted once per
+    machine (into the dance3d cache, as `dance3d models fetch` would into a project), outputs verified."""
+    from pipeline.core.numba_cache import cache_root
+    from pipeline.pose.models.fetch import FetchError, fetch_model
+
+    try:
+        return fetch_model("hand-landmark-full", cache_root() / "test-models")
+    except FetchError as exc:
+        skip_or_fail(f"the hand landmark model could not be fetched and converted: {exc}")
+
+
 def copy_project(dest: Path) -> Path:
     """The project's tracked and untracked-but-not-ignored files (no data/, no demo media) in a new
     git repository at ``dest``."""

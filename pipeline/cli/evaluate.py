@@ -13,7 +13,7 @@ from pipeline.core.errors import Dance3dError
 
 
 def add_eval(sub: argparse._SubParsersAction) -> None:
-    evaluate = sub.add_parser("eval", help="measure quality on data you bring (pose2d, beats, segments, lifter, world)",
+    evaluate = sub.add_parser("eval", help="measure quality on data you bring (pose2d, hands, beats, lifter, world...)",
                               description="Quality measures against your own annotated data.")
     evaluate_sub = evaluate.add_subparsers(dest="what", required=True, metavar="WHAT")
     pose2d = evaluate_sub.add_parser(
@@ -41,6 +41,20 @@ def add_eval(sub: argparse._SubParsersAction) -> None:
     pose2d.add_argument("--precision", choices=("auto", "f32", "bf16"), default=None,
                         help="OpenVINO's inference precision (default: params.yaml's pose2d.precision)")
     _json_out(pose2d)
+    hands = evaluate_sub.add_parser(
+        "hands", help="the hand landmark model on annotated hand images (PCK, error in pixels, 3D error)",
+        description="Find each image's hands as pose2d will (--regions body: the stage's detector and body model, "
+                    "a region beyond each confident wrist along its forearm) or on the annotated boxes (--regions "
+                    "annotated: the hand model alone), run MediaPipe's hand landmark model there and score it per "
+                    "dataset: PCK at 0.2 of the hand box over every labelled joint (a hand not found misses all its "
+                    "joints), the mean error in pixels of the hands found, hands found against annotated, and the "
+                    "root-aligned 3D error where an annotation has 3D points. Protocol: "
+                    "pipeline/pose/evaluate_hands.py.")
+    hands.add_argument("--annotations", type=Path, required=True, help="hand annotations JSON (hand_eval's layout)")
+    hands.add_argument("--images", type=Path, required=True, help="folder holding the images' file paths")
+    hands.add_argument("--regions", choices=("body", "annotated"), default="body", help="where hands are looked for")
+    hands.add_argument("--min-presence", type=float, default=0.5, help="the model's presence for a hand found")
+    _json_out(hands)
     beats = evaluate_sub.add_parser(
         "beats", help="both beat trackers against beat annotations (mir_eval), per file",
         description="Track beats with both trackers (rnn: madmom's RNN beats and bars, the default; librosa) and "
@@ -145,6 +159,10 @@ def run_eval(root: Path, args: argparse.Namespace) -> int:
             from pipeline.pose.evaluate import format_table
 
             result = _eval_pose2d(root, args)
+        elif args.what == "hands":
+            from pipeline.pose.evaluate_hands import format_table
+
+            result = _eval_hands(root, args)
         elif args.what == "lifter":
             from pipeline.motion.lifting.evaluate import evaluate_onnx
             from pipeline.motion.lifting.evaluate import format_report as format_table
@@ -218,6 +236,26 @@ def _eval_pose2d(root: Path, args: argparse.Namespace) -> dict:
     describe.update(confirm_score=opts.confirm_score, dark_mean=opts.dark_mean)
     return evaluate_pose2d(args.annotations, args.images, models.detector, models.pose, gt_boxes=args.gt_boxes,
                            opts=opts, describe=describe)
+
+
+def _eval_hands(root: Path, args: argparse.Namespace) -> dict:
+    from pipeline.core.params import project_or_default_params, stage_params
+    from pipeline.pose.evaluate_hands import evaluate_hands
+    from pipeline.pose.hands import HandLandmarks
+    from pipeline.pose.models.fetch import resolve_model
+    from pipeline.pose.models.loading import load_pose_models, model_files
+    from pipeline.pose.models.session import create_session
+    from pipeline.pose.pose2d import Pose2dOptions
+
+    params = stage_params(project_or_default_params(root), "pose2d")
+    landmarks = HandLandmarks(create_session(resolve_model("hand-landmark-full", root)))
+    body, opts = None, Pose2dOptions.from_params(params)
+    if args.regions == "body":
+        models = load_pose_models(model_files(root, params)[0])
+        body = (models.detector, models.pose)
+    return evaluate_hands(args.annotations, args.images, landmarks, regions=args.regions, body=body, opts=opts,
+                          min_presence=args.min_presence,
+                          describe={"hand_model": "hand-landmark-full", "pose_model": params.get("pose_model")})
 
 
 def _json_out(parser: argparse.ArgumentParser) -> None:

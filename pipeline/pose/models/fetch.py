@@ -76,6 +76,13 @@ ROUTES: dict[str, tuple[Route, ...]] = {
               convert=("--opset", "13"), converter=TF2ONNX_TF215,
               source="Google's mediapipe 0.10.21 wheel on PyPI (cp311 manylinux_2_28_x86_64), Apache-2.0"),
     ),
+    "hand-landmark-full": (
+        Route("pip:mediapipe==0.10.21", "11c272b891e1a99ab034208e23937a8008388cf11ed2a9d776ed3d01d0ba00e3",
+              member="mediapipe/modules/hand_landmark/hand_landmark_full.tflite",
+              archive_sha256="05dc4a9e593655a79558d05d6227d31018c2537a4bd3362b51e230cf22aecfe3",
+              convert=("--opset", "13"), converter=TF2ONNX_TF215,
+              source="Google's mediapipe 0.10.21 wheel on PyPI (cp311 manylinux_2_28_x86_64), Apache-2.0"),
+    ),
 }
 
 
@@ -241,6 +248,11 @@ def model_outputs(name: str, path: Path) -> dict[str, list]:
     if name == "blazepose-full":
         batch = BlazePose(session).estimate(image, np.array([[60, 20, 260, 310]], np.float32))
         return {"keypoints": np.asarray(np.vstack([batch.keypoints[0], batch.feet[0]]), np.float64).round(3).tolist()}
+    if name == "hand-landmark-full":  # one pass on a square around the end of the figure's arm (image left)
+        from pipeline.pose.hands import HandLandmarks, region_from_box
+
+        hand = HandLandmarks(session).run(image, region_from_box(np.array([60, 170, 40, 40])))
+        return {"keypoints": np.asarray(hand.keypoints, np.float64).round(3).tolist()}
     raise FetchError(f"no output check for model {name}")
 
 

@@ -24,7 +24,7 @@ log = logging.getLogger(__name__)
 class ModelSpec:
     name: str
     file: str
-    kind: str                   # rtmdet | picodet | movenet | rtmpose | tinypose | blazepose | lifter
+    kind: str                   # rtmdet | picodet | movenet | rtmpose | tinypose | blazepose | hand | lifter
     input_size: tuple[int, int]  # (width, height) the model expects
     sha256: str | None          # None: not pinned, so never downloaded automatically
     url: str | None = None      # where users get it by hand (fetchable models have routes in fetch.py)
@@ -67,6 +67,11 @@ REGISTRY: dict[str, ModelSpec] = {
             "blazepose-full", "blazepose_full.onnx", "blazepose", (256, 256), None,
             note="BlazePose GHUM Full (Google, Apache-2.0): 33 landmarks with heels and toes, and world "
                  "landmarks; converted from the mediapipe 0.10.21 wheel by `dance3d models fetch blazepose-full`",
+        ),
+        ModelSpec(
+            "hand-landmark-full", "hand_landmark_full.onnx", "hand", (224, 224), None,
+            note="MediaPipe's hand landmark model, full (Google, Apache-2.0): 21 hand points in the image and in "
+                 "metres; converted from the mediapipe 0.10.21 wheel by `dance3d models fetch hand-landmark-full`",
         ),
         ModelSpec(
             "rtmpose-m", "rtmpose-m_simcc-body7_256x192.onnx", "rtmpose", (192, 256), None,

@@ -1,0 +1,104 @@
+"""Hands: 21 keypoints per hand from MediaPipe's hand landmark model, on a region of the image.
+
+The region is a rotated square, MediaPipe's convention (``models.pose.roi_transform``): from a
+box around the hand (an annotation), or from the body's forearm (elbow -> wrist: the hand lies
+beyond the wrist along it, about half a forearm long). A second pass takes MediaPipe's own
+region from the first pass's landmarks: wrist -> middle finger's knuckle pointing up, twice the
+hand's extent. Joints are in MediaPipe's order (``HAND_JOINTS``), which is also FreiHAND's,
+InterHand's and COCO-WholeBody's.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.pose.models.pose import roi_transform, to_image, warp
+
+HAND_JOINTS = ("wrist", *(f"{finger}_{k}" for finger in ("thumb", "index", "middle", "ring", "pinky")
+                          for k in range(1, 5)))
+WRIST, MIDDLE_KNUCKLE = 0, 9
+SIDES = ("left", "right")
+# The hand's centre beyond the wrist, and the region's side, in forearm lengths (elbow -> wrist):
+# an adult hand is about 0.7 of a forearm from wrist to fingertip.
+CENTRE_BEYOND_WRIST = 0.35
+SIDE_PER_FOREARM = 1.3
+
+
+@dataclass(frozen=True)
+class Hand:
+    """One hand found in a region."""
+
+    keypoints: np.ndarray  # 21 x 3: x, y (image pixels), score (the hand's presence; the model has no per-joint one)
+    world: np.ndarray      # 21 x 3: metres about the hand's centre, x right and y down as the image
+    presence: float        # the model's confidence that a hand is there
+    right: float           # its probability that this is a right hand (on the image as it is, not mirrored)
+    region: np.ndarray     # the 2 x 3 affine that made the crop
+
+
+class HandLandmarks:
+    """MediaPipe's hand landmark model (full), NHWC RGB [0, 1] 224 x 224 in; per crop 21 points in
+    crop pixels (and a relative depth), the hand's presence, its handedness and 21 world points."""
+
+    def __init__(self, session, size: int = 224) -> None:
+        self.session, self.size = session, size
+        self.input_name = session.get_inputs()[0].name
+        names = [o.name for o in session.get_outputs()]  # as converted: screen, presence, handedness, world
+        self.screen, self.presence, self.handedness, self.world = names[:4]
+
+    def run(self, image: np.ndarray, region: np.ndarray) -> Hand:
+        """The hand in ``region`` (a 2 x 3 affine onto the model's square) of a BGR ``image``."""
+        crop = warp(image, region, self.size, self.size)[..., ::-1].astype(np.float32) / 255.0
+        screen, presence, handedness, world = self.session.run(
+            [self.screen, self.presence, self.handedness, self.world], {self.input_name: crop[None]})
+        xy = to_image(screen.reshape(21, 3)[:, :2].astype(np.float64), region)
+        p = float(np.ravel(presence)[0])
+        rot = region[:, :2] / np.hypot(*region[0, :2])  # the crop's rotation, undone for the world points
+        w = world.reshape(21, 3).astype(np.float64)
+        # The handedness output is the probability of a right hand on the image as given (on the annotated
+        # hands of hand_eval, every clear one agrees; MediaPipe's label map reads it for mirrored images).
+        return Hand(np.column_stack([xy, np.full(21, p)]).astype(np.float32),
+                    np.column_stack([w[:, :2] @ rot, w[:, 2]]).astype(np.float32), p,
+                    float(np.ravel(handedness)[0]), region)
+
+    def estimate(self, image: np.ndarray, region: np.ndarray, passes: int = 2) -> Hand:
+        """The hand in ``region``, then ``passes - 1`` times in the region its landmarks give."""
+        hand = self.run(image, region)
+        for _ in range(passes - 1):
+            hand = self.run(image, region_from_landmarks(hand.keypoints[:, :2], self.size))
+        return hand
+
+
+def region_from_box(box: np.ndarray, size: int = 224, scale: float = 2.0) -> np.ndarray:
+    """An upright square on a hand's box (x, y, w, h), ``scale`` times its longer side."""
+    x, y, w, h = (float(v) for v in box)
+    centre = np.array([x + w / 2, y + h / 2])
+    return roi_transform(centre, centre - [0.0, max(w, h) / 2], size, scale)
+
+
+def region_from_forearm(elbow: np.ndarray, wrist: np.ndarray, size: int = 224) -> np.ndarray | None:
+    """The square where the hand beyond ``wrist`` lies, turned so the forearm points up (None for a
+    forearm shorter than a pixel)."""
+    elbow, wrist = np.asarray(elbow, np.float64)[:2], np.asarray(wrist, np.float64)[:2]
+    forearm = wrist - elbow
+    length = float(np.hypot(*forearm))
+    if length < 1.0:
+        return None
+    centre = wrist + CENTRE_BEYOND_WRIST * forearm
+    return roi_transform(centre, centre + forearm / length * (SIDE_PER_FOREARM * length / 2), size, 1.0)
+
+
+def region_from_landmarks(points: np.ndarray, size: int = 224, scale: float = 2.0) -> np.ndarray:
+    """MediaPipe's region from a hand's 21 points: wrist -> middle knuckle up, centred on the points'
+    extent in that frame, ``scale`` times its longer side."""
+    pts = np.asarray(points, np.float64)[:, :2]
+    up = pts[MIDDLE_KNUCKLE] - pts[WRIST]
+    if np.hypot(*up) < 1e-6:
+        up = np.array([0.0, -1.0])
+    up /= np.hypot(*up)
+    across = np.array([-up[1], up[0]])
+    along, side = pts @ up, pts @ across
+    centre = ((along.min() + along.max()) / 2) * up + ((side.min() + side.max()) / 2) * across
+    half = max(np.ptp(along), np.ptp(side)) / 2
+    return roi_transform(centre, centre + up * max(half, 0.5), size, scale)
