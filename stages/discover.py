@@ -15,9 +15,9 @@ from pathlib import Path
 from pipeline.core.errors import RateLimitedError
 from pipeline.core.failures import Failure, check_failure_ratio, now, write_failures
 from pipeline.core.params import load_params, stage_params
-from pipeline.core.paths import CATALOG, SOURCES
+from pipeline.core.paths import CATALOG, RAW, SOURCES
 from pipeline.core.stage import run_stage, setup_logging
-from pipeline.ingest.catalog import read_discovered, write_discovered
+from pipeline.ingest.catalog import read_discovered, read_ledger, write_discovered
 from pipeline.ingest.discover import DiscoverOptions, discover_lists, is_list_source, select
 from pipeline.ingest.download import DownloadOptions
 from pipeline.ingest.sources import read_sources
@@ -31,10 +31,12 @@ def run(root: Path) -> None:
     opts = DiscoverOptions.from_params(params)
     net = DownloadOptions.from_params(all_params.get("download") or {})  # the downloads' politeness
     sources = read_sources(root / SOURCES, base_dir=root, allow_file_urls=net.allow_file_urls)
-    lists = [s for s in sources if is_list_source(s)]
     catalog_dir = root / CATALOG
     catalog_dir.mkdir(parents=True, exist_ok=True)
     previous = read_discovered(catalog_dir)
+    # Lists already discovered, and videos already downloaded, are known without asking yt-dlp.
+    videos = {url for url, row in read_ledger(root / RAW).items() if row["status"] == "ok"}
+    lists = [s for s in sources if is_list_source(s, previous, videos)]
     taken = {s.video_id for s in sources if s.video_id} | {r["video_id"] for rows in previous.values() for r in rows}
     found = discover_lists(lists, previous, opts, net, taken)
     out = [{**r, "list_line": feed.line} for feed in lists for r in select(found.found.get(feed.url, []), opts)]
