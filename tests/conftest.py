@@ -154,17 +154,28 @@ def hand_eval_dir() -> Path:
     return _asset_dir("DANCE3D_HAND_EVAL", "annotations.json")
 
 
-@pytest.fixture(scope="session")
-def hand_model() -> Path:
-    """MediaPipe's hand landmark model, fetched from the pinned mediapipe wheel and converted once per
-    machine (into the dance3d cache, as `dance3d models fetch` would into a project), outputs verified."""
+def _fetched(name: str) -> Path:
+    """A model fetched from its route and converted once per machine (into the dance3d cache, as
+    `dance3d models fetch` would into a project), outputs verified."""
     from pipeline.core.numba_cache import cache_root
     from pipeline.pose.models.fetch import FetchError, fetch_model
 
     try:
-        return fetch_model("hand-landmark-full", cache_root() / "test-models")
+        return fetch_model(name, cache_root() / "test-models")
     except FetchError as exc:
-        skip_or_fail(f"the hand landmark model could not be fetched and converted: {exc}")
+        skip_or_fail(f"{name} could not be fetched and converted: {exc}")
+
+
+@pytest.fixture(scope="session")
+def hand_model() -> Path:
+    """MediaPipe's hand landmark model, from the pinned mediapipe wheel."""
+    return _fetched("hand-landmark-full")
+
+
+@pytest.fixture(scope="session")
+def palm_model() -> Path:
+    """MediaPipe's palm detector, from the pinned mediapipe wheel: `eval hands`'s peer."""
+    return _fetched("palm-detection-full")
 
 
 def copy_project(dest: Path) -> Path:

@@ -44,15 +44,16 @@ def add_eval(sub: argparse._SubParsersAction) -> None:
     hands = evaluate_sub.add_parser(
         "hands", help="the hand landmark model on annotated hand images (PCK, error in pixels, 3D error)",
         description="Find each image's hands as pose2d will (--regions body: the stage's detector and body model, "
-                    "a region beyond each confident wrist along its forearm) or on the annotated boxes (--regions "
-                    "annotated: the hand model alone), run MediaPipe's hand landmark model there and score it per "
-                    "dataset: PCK at 0.2 of the hand box over every labelled joint (a hand not found misses all its "
-                    "joints), the mean error in pixels of the hands found, hands found against annotated, and the "
-                    "root-aligned 3D error where an annotation has 3D points. Protocol: "
-                    "pipeline/pose/evaluate_hands.py.")
+                    "a region beyond each confident wrist along its forearm), with MediaPipe's own palm detector "
+                    "(--regions palm: the peer) or on the annotated boxes (--regions annotated: the hand model "
+                    "alone), run MediaPipe's hand landmark model there and score it per dataset: PCK at 0.2 of the "
+                    "hand box over every labelled joint (a hand not found misses all its joints), the mean error in "
+                    "pixels of the hands found, hands found against annotated, and the root-aligned 3D error where "
+                    "an annotation has 3D points. Protocol: pipeline/pose/evaluate_hands.py.")
     hands.add_argument("--annotations", type=Path, required=True, help="hand annotations JSON (hand_eval's layout)")
     hands.add_argument("--images", type=Path, required=True, help="folder holding the images' file paths")
-    hands.add_argument("--regions", choices=("body", "annotated"), default="body", help="where hands are looked for")
+    hands.add_argument("--regions", choices=("body", "palm", "annotated"), default="body",
+                       help="where hands are looked for (palm: MediaPipe's own palm detector, the peer)")
     hands.add_argument("--min-presence", type=float, default=0.5, help="the model's presence for a hand found")
     _json_out(hands)
     beats = evaluate_sub.add_parser(
@@ -240,21 +241,11 @@ def _eval_pose2d(root: Path, args: argparse.Namespace) -> dict:
 
 def _eval_hands(root: Path, args: argparse.Namespace) -> dict:
     from pipeline.core.params import project_or_default_params, stage_params
-    from pipeline.pose.evaluate_hands import evaluate_hands
-    from pipeline.pose.hands import HandLandmarks
-    from pipeline.pose.models.fetch import resolve_model
-    from pipeline.pose.models.loading import load_pose_models, model_files
-    from pipeline.pose.models.session import create_session
-    from pipeline.pose.pose2d import Pose2dOptions
+    from pipeline.pose.evaluate_hands import evaluate_hands, load_models
 
     params = stage_params(project_or_default_params(root), "pose2d")
-    landmarks = HandLandmarks(create_session(resolve_model("hand-landmark-full", root)))
-    body, opts = None, Pose2dOptions.from_params(params)
-    if args.regions == "body":
-        models = load_pose_models(model_files(root, params)[0])
-        body = (models.detector, models.pose)
-    return evaluate_hands(args.annotations, args.images, landmarks, regions=args.regions, body=body, opts=opts,
-                          min_presence=args.min_presence,
+    return evaluate_hands(args.annotations, args.images, regions=args.regions, min_presence=args.min_presence,
+                          **load_models(root, params, args.regions),
                           describe={"hand_model": "hand-landmark-full", "pose_model": params.get("pose_model")})
 
 

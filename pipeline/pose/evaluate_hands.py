@@ -8,8 +8,10 @@ Regions (``regions``): ``body``, as pose2d will find hands: the pose2d stage's d
 model on the whole image, a region beyond each confident wrist along its forearm, the hand model
 there; each annotated hand is matched to the nearest hand found on its side. An image where no
 person is found is taken as a crop around one hand (the hand-only datasets: a body cannot be seen
-there), its side the model's handedness. ``annotated``: a region on the annotated box (the model
-alone, as if the region were perfect).
+there), its side the model's handedness. ``palm``: MediaPipe's own hand pipeline as the peer
+(``palms.py``: its palm detector on the whole image, the landmark model once in each palm's
+region). ``annotated``: a region on the annotated box (the model alone, as if the region were
+perfect).
 
 Per dataset and over all: PCK at 0.2 of the hand box's longer side over every labelled joint
 (a hand not found counts all its joints as misses), the mean error in pixels over the hands
@@ -80,6 +82,14 @@ def body_hands(image: np.ndarray, detector, pose, opts, landmarks: HandLandmarks
     return found
 
 
+def palm_hands(image: np.ndarray, palms, landmarks: HandLandmarks) -> list[tuple[str, Hand]]:
+    """(side, hand) in every palm's region, MediaPipe's way: one landmark pass, the side its handedness."""
+    from pipeline.pose.palms import region_from_palm
+
+    hands = [landmarks.estimate(image, region_from_palm(p, landmarks.size), passes=1) for p in palms.detect(image)]
+    return [("right" if hand.right >= 0.5 else "left", hand) for hand in hands]
+
+
 def _match(truth: list[dict], found: list[tuple[str, Hand]]) -> list[Hand | None]:
     """Each annotated hand's hand found: the nearest on its side (mean error over its labelled joints,
     at most its box's longer side), each hand found matched once, nearest pairs first."""
@@ -127,13 +137,36 @@ def _summary(rows: list[dict]) -> dict:
             "error_3d_mm": round(float(np.mean(three_d)), 1) if three_d else None, "hands_3d": len(three_d)}
 
 
+REGIONS = ("body", "palm", "annotated")
+
+
+def load_models(root: Path, params: dict, regions: str) -> dict:
+    """What ``evaluate_hands`` needs for ``regions``, from the project (or the models' search path) and
+    the pose2d section ``params``: the hand model, and the body models or the palm detector."""
+    from pipeline.pose.models.fetch import resolve_model
+    from pipeline.pose.models.loading import load_pose_models, model_files
+    from pipeline.pose.models.session import create_session
+    from pipeline.pose.palms import PalmDetector
+    from pipeline.pose.pose2d import Pose2dOptions
+
+    models = {"landmarks": HandLandmarks(create_session(resolve_model("hand-landmark-full", root))),
+              "opts": Pose2dOptions.from_params(params)}
+    if regions == "palm":
+        models["palms"] = PalmDetector(create_session(resolve_model("palm-detection-full", root)))
+    if regions == "body":
+        pose_models = load_pose_models(model_files(root, params)[0])
+        models["body"] = (pose_models.detector, pose_models.pose)
+    return models
+
+
 def evaluate_hands(annotations: Path, images: Path, landmarks: HandLandmarks, *, regions: str = "body",
-                   body=None, opts=None, min_presence: float = 0.5, describe: dict | None = None) -> dict:
-    """Per dataset and over all (see the module's docstring); ``body`` is (detector, pose) for ``body``."""
+                   body=None, opts=None, palms=None, min_presence: float = 0.5, describe: dict | None = None) -> dict:
+    """Per dataset and over all (see the module's docstring); ``body`` is (detector, pose) for ``body``,
+    ``palms`` a ``palms.PalmDetector`` for ``palm``."""
     import cv2
 
-    if regions not in ("body", "annotated"):
-        raise ValueError(f"regions must be body or annotated, not {regions!r}")
+    if regions not in REGIONS:
+        raise ValueError(f"regions must be one of {', '.join(REGIONS)}, not {regions!r}")
     rows: dict[str, list[dict]] = {}
     for entry in read_hand_annotations(annotations):
         path = Path(images) / entry["file"]
@@ -143,6 +176,8 @@ def evaluate_hands(annotations: Path, images: Path, landmarks: HandLandmarks, *,
         truth = entry.get("hands") or []
         if regions == "annotated":
             matched = [landmarks.estimate(image, region_from_box(h["bbox"], landmarks.size)) for h in truth]
+        elif regions == "palm":
+            matched = _match(truth, palm_hands(image, palms, landmarks))
         else:
             matched = _match(truth, body_hands(image, *body, opts, landmarks))
         rows.setdefault(entry.get("dataset", ""), []).extend(
@@ -154,7 +189,7 @@ def evaluate_hands(annotations: Path, images: Path, landmarks: HandLandmarks, *,
 
 
 def format_table(result: dict) -> str:
-    lines = [f"hands, regions from the {result['regions']}: PCK at {result['pck_share']} of the hand box "
+    lines = [f"hands, regions from {result['regions']}: PCK at {result['pck_share']} of the hand box "
              f"(a hand not found misses all its joints), error over the hands found",
              "| dataset | hands found / annotated | PCK | error px | root-aligned 3D error mm (hands) |",
              "|---|---|---|---|---|"]

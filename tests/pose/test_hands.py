@@ -107,3 +107,16 @@ def test_eval_hands_from_the_body_prints_a_table_per_dataset(hand_model: Path, h
     result = json.loads(out.read_text())
     assert result["regions"] == "body"
     assert result["datasets"]["coco_wholebody"]["found"] >= 1  # small hands of whole people, found from their arms
+
+
+def test_mediapipes_own_pipeline_runs_as_the_peer(hand_model: Path, palm_model: Path, hand_eval_dir: Path) -> None:
+    from pipeline.pose.evaluate_hands import evaluate_hands
+    from pipeline.pose.models.session import create_session
+    from pipeline.pose.palms import PalmDetector
+
+    result = evaluate_hands(hand_eval_dir / "annotations.json", hand_eval_dir,
+                            HandLandmarks(create_session(hand_model)), regions="palm",
+                            palms=PalmDetector(create_session(palm_model)))
+    assert result["datasets"]["freihand"]["found"] == 4 and result["datasets"]["freihand"]["pck"] >= 0.8
+    whole_people = [result["datasets"][name]["found"] for name in ("coco_wholebody", "halpe")]
+    assert whole_people == [0, 0]  # its palm detector sees none of the small hands of whole people

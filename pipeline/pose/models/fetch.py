@@ -83,6 +83,13 @@ ROUTES: dict[str, tuple[Route, ...]] = {
               convert=("--opset", "13"), converter=TF2ONNX_TF215,
               source="Google's mediapipe 0.10.21 wheel on PyPI (cp311 manylinux_2_28_x86_64), Apache-2.0"),
     ),
+    "palm-detection-full": (
+        Route("pip:mediapipe==0.10.21", "1b14e9422c6ad006cde6581a46c8b90dd573c07ab7f3934b5589e7cea3f89a54",
+              member="mediapipe/modules/palm_detection/palm_detection_full.tflite",
+              archive_sha256="05dc4a9e593655a79558d05d6227d31018c2537a4bd3362b51e230cf22aecfe3",
+              convert=("--opset", "13"), converter=TF2ONNX_TF215,
+              source="Google's mediapipe 0.10.21 wheel on PyPI (cp311 manylinux_2_28_x86_64), Apache-2.0"),
+    ),
 }
 
 
@@ -253,6 +260,11 @@ def model_outputs(name: str, path: Path) -> dict[str, list]:
 
         hand = HandLandmarks(session).run(image, region_from_box(np.array([60, 170, 40, 40])))
         return {"keypoints": np.asarray(hand.keypoints, np.float64).round(3).tolist()}
+    if name == "palm-detection-full":  # the boxes before the score threshold: the card holds no palm
+        from pipeline.pose.palms import PalmDetector
+
+        palms = PalmDetector(session, min_score=0.0, overlap=0.3).detect(image)[:5]
+        return {"dets": [[*np.asarray(p.box, np.float64).round(3).tolist(), round(p.score, 3)] for p in palms]}
     raise FetchError(f"no output check for model {name}")
 
 

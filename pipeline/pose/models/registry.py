@@ -74,6 +74,11 @@ REGISTRY: dict[str, ModelSpec] = {
                  "metres; converted from the mediapipe 0.10.21 wheel by `dance3d models fetch hand-landmark-full`",
         ),
         ModelSpec(
+            "palm-detection-full", "palm_detection_full.onnx", "palm", (192, 192), None,
+            note="MediaPipe's palm detector, full (Google, Apache-2.0), the peer of `eval hands`; converted from the "
+                 "mediapipe 0.10.21 wheel by `dance3d models fetch palm-detection-full`",
+        ),
+        ModelSpec(
             "rtmpose-m", "rtmpose-m_simcc-body7_256x192.onnx", "rtmpose", (192, 256), None,
             url="https://download.openmmlab.com/mmpose/v1/projects/rtmposev1/onnx_sdk/"
                 "rtmpose-m_simcc-body7_pt-body7_420e-256x192-e48f03d0_20230504.zip",
