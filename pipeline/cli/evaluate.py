@@ -43,17 +43,18 @@ def add_eval(sub: argparse._SubParsersAction) -> None:
     _json_out(pose2d)
     hands = evaluate_sub.add_parser(
         "hands", help="the hand landmark model on annotated hand images (PCK, error in pixels, 3D error)",
-        description="Find each image's hands as pose2d will (--regions body: the stage's detector and body model, "
-                    "a region beyond each confident wrist along its forearm), with MediaPipe's own palm detector "
-                    "(--regions palm: the peer) or on the annotated boxes (--regions annotated: the hand model "
-                    "alone), run MediaPipe's hand landmark model there and score it per dataset: PCK at 0.2 of the "
+        description="Find each image's hands from the body (the pose2d stage's detector and body model, a region "
+                    "beyond each confident wrist along its forearm) and MediaPipe's palm detector, the surer of two "
+                    "on one spot kept (--regions body+palm, the default), from either alone (palm alone is "
+                    "MediaPipe's own pipeline, the peer) or on the annotated boxes (the hand model alone), run "
+                    "MediaPipe's hand landmark model there and score it per dataset: PCK at 0.2 of the "
                     "hand box over every labelled joint (a hand not found misses all its joints), the mean error in "
                     "pixels of the hands found, hands found against annotated, and the root-aligned 3D error where "
                     "an annotation has 3D points. Protocol: pipeline/pose/evaluate_hands.py.")
     hands.add_argument("--annotations", type=Path, required=True, help="hand annotations JSON (hand_eval's layout)")
     hands.add_argument("--images", type=Path, required=True, help="folder holding the images' file paths")
-    hands.add_argument("--regions", choices=("body", "palm", "annotated"), default="body",
-                       help="where hands are looked for (palm: MediaPipe's own palm detector, the peer)")
+    hands.add_argument("--regions", choices=("body+palm", "body", "palm", "annotated"), default="body+palm",
+                       help="where hands are looked for (palm alone: MediaPipe's own pipeline, the peer)")
     hands.add_argument("--min-presence", type=float, default=0.5, help="the model's presence for a hand found")
     _json_out(hands)
     beats = evaluate_sub.add_parser(

@@ -10,8 +10,10 @@ there; each annotated hand is matched to the nearest hand found on its side. An 
 person is found is taken as a crop around one hand (the hand-only datasets: a body cannot be seen
 there), its side the model's handedness. ``palm``: MediaPipe's own hand pipeline as the peer
 (``palms.py``: its palm detector on the whole image, the landmark model once in each palm's
-region). ``annotated``: a region on the annotated box (the model alone, as if the region were
-perfect).
+region). ``body+palm`` (the command's default): both, the surer of two hands on one spot kept
+(``fused_hands``): the two fail in opposite places (the palm detector misses small hands of whole
+people, the forearm misses where no body is seen). ``annotated``: a region on the annotated box
+(the model alone, as if the region were perfect).
 
 Per dataset and over all: PCK at 0.2 of the hand box's longer side over every labelled joint
 (a hand not found counts all its joints as misses), the mean error in pixels over the hands
@@ -90,6 +92,18 @@ def palm_hands(image: np.ndarray, palms, landmarks: HandLandmarks) -> list[tuple
     return [("right" if hand.right >= 0.5 else "left", hand) for hand in hands]
 
 
+def fused_hands(body: list[tuple[str, Hand]], palm: list[tuple[str, Hand]]) -> list[tuple[str, Hand]]:
+    """Hands from both paths, one per place: of two whose wrists lie within half the larger hand's
+    extent of each other, the surer is kept (no annotation is looked at)."""
+    kept: list[tuple[str, Hand]] = []
+    for side, hand in sorted(body + palm, key=lambda pair: -pair[1].presence):
+        extent = np.ptp(hand.keypoints[:, :2], axis=0).max()
+        if all(np.linalg.norm(hand.keypoints[0, :2] - other.keypoints[0, :2])
+               > 0.5 * max(extent, np.ptp(other.keypoints[:, :2], axis=0).max()) for _, other in kept):
+            kept.append((side, hand))
+    return kept
+
+
 def _match(truth: list[dict], found: list[tuple[str, Hand]]) -> list[Hand | None]:
     """Each annotated hand's hand found: the nearest on its side (mean error over its labelled joints,
     at most its box's longer side), each hand found matched once, nearest pairs first."""
@@ -137,7 +151,7 @@ def _summary(rows: list[dict]) -> dict:
             "error_3d_mm": round(float(np.mean(three_d)), 1) if three_d else None, "hands_3d": len(three_d)}
 
 
-REGIONS = ("body", "palm", "annotated")
+REGIONS = ("body", "palm", "body+palm", "annotated")
 
 
 def load_models(root: Path, params: dict, regions: str) -> dict:
@@ -151,9 +165,9 @@ def load_models(root: Path, params: dict, regions: str) -> dict:
 
     models = {"landmarks": HandLandmarks(create_session(resolve_model("hand-landmark-full", root))),
               "opts": Pose2dOptions.from_params(params)}
-    if regions == "palm":
+    if "palm" in regions:
         models["palms"] = PalmDetector(create_session(resolve_model("palm-detection-full", root)))
-    if regions == "body":
+    if "body" in regions:
         pose_models = load_pose_models(model_files(root, params)[0])
         models["body"] = (pose_models.detector, pose_models.pose)
     return models
@@ -178,6 +192,9 @@ def evaluate_hands(annotations: Path, images: Path, landmarks: HandLandmarks, *,
             matched = [landmarks.estimate(image, region_from_box(h["bbox"], landmarks.size)) for h in truth]
         elif regions == "palm":
             matched = _match(truth, palm_hands(image, palms, landmarks))
+        elif regions == "body+palm":
+            matched = _match(truth, fused_hands(body_hands(image, *body, opts, landmarks),
+                                                palm_hands(image, palms, landmarks)))
         else:
             matched = _match(truth, body_hands(image, *body, opts, landmarks))
         rows.setdefault(entry.get("dataset", ""), []).extend(

@@ -94,10 +94,11 @@ def test_handedness_is_read_on_the_image_as_it_is_not_mirrored(hand_model: Path,
     assert np.median(as_is) < 0.2 and np.median(flipped) > 0.8
 
 
-def test_eval_hands_from_the_body_prints_a_table_per_dataset(hand_model: Path, hand_eval_dir: Path,
-                                                             models_dir: Path, tmp_path: Path) -> None:
+def test_eval_hands_from_the_body_and_the_palms_prints_a_table_per_dataset(
+        hand_model: Path, palm_model: Path, hand_eval_dir: Path, models_dir: Path, tmp_path: Path) -> None:
     (tmp_path / "models").mkdir()
-    (tmp_path / "models" / hand_model.name).symlink_to(hand_model)
+    for model in (hand_model, palm_model):
+        (tmp_path / "models" / model.name).symlink_to(model)
     out = tmp_path / "hands.json"
     done = subprocess.run([sys.executable, "-m", "pipeline.cli", "eval", "hands", "--annotations",
                            str(hand_eval_dir / "annotations.json"), "--images", str(hand_eval_dir), "--out", str(out)],
@@ -105,8 +106,10 @@ def test_eval_hands_from_the_body_prints_a_table_per_dataset(hand_model: Path, h
     assert done.returncode == 0, done.stderr
     assert "| coco_wholebody |" in done.stdout and "| **all** |" in done.stdout
     result = json.loads(out.read_text())
-    assert result["regions"] == "body"
+    assert result["regions"] == "body+palm"
     assert result["datasets"]["coco_wholebody"]["found"] >= 1  # small hands of whole people, found from their arms
+    assert result["datasets"]["hand_graph_cnn_realworld"]["found"] == 12  # hands without a body, by their palms
+    assert result["all"]["pck"] > 0.6
 
 
 def test_mediapipes_own_pipeline_runs_as_the_peer(hand_model: Path, palm_model: Path, hand_eval_dir: Path) -> None:
