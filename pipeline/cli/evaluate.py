@@ -242,8 +242,9 @@ def _eval_pose2d(root: Path, args: argparse.Namespace) -> dict:
 
 def _eval_hands(root: Path, args: argparse.Namespace) -> dict:
     from pipeline.core.params import project_or_default_params, stage_params
-    from pipeline.pose.evaluate_hands import evaluate_hands, load_models
+    from pipeline.pose.evaluate_hands import evaluate_hands, load_models, read_hand_annotations
 
+    read_hand_annotations(args.annotations)  # a bad file is named before any model loads
     params = stage_params(project_or_default_params(root), "pose2d")
     return evaluate_hands(args.annotations, args.images, regions=args.regions, min_presence=args.min_presence,
                           **load_models(root, params, args.regions),
