@@ -56,6 +56,14 @@ class Route:
     source: str = ""                     # who publishes the file
 
 
+def _mediapipe(member: str, sha256: str) -> Route:
+    """A model inside the pinned mediapipe wheel (``mediapipe/modules/<member>``), converted by tf2onnx."""
+    return Route("pip:mediapipe==0.10.21", sha256, member=f"mediapipe/modules/{member}",
+                 archive_sha256="05dc4a9e593655a79558d05d6227d31018c2537a4bd3362b51e230cf22aecfe3",
+                 convert=("--opset", "13"), converter=TF2ONNX_TF215,
+                 source="Google's mediapipe 0.10.21 wheel on PyPI (cp311 manylinux_2_28_x86_64), Apache-2.0")
+
+
 ROUTES: dict[str, tuple[Route, ...]] = {
     "rtmdet-nano-person": (
         Route("https://raw.githubusercontent.com/zli20/RtmDet-RtmPose-OnnxRuntime/"
@@ -69,27 +77,12 @@ ROUTES: dict[str, tuple[Route, ...]] = {
               convert=("--dequantize", "--opset", "13"), converter=TF2ONNX_TF215,
               source="Google's TF-Hub release google/movenet/singlepose/lightning/4 (int8 TFLite)"),
     ),
-    "blazepose-full": (
-        Route("pip:mediapipe==0.10.21", "e9a5c5cb17f736fafd4c2ec1da3b3d331d6edbe8a0d32395855aeb2cdfd64b9f",
-              member="mediapipe/modules/pose_landmark/pose_landmark_full.tflite",
-              archive_sha256="05dc4a9e593655a79558d05d6227d31018c2537a4bd3362b51e230cf22aecfe3",
-              convert=("--opset", "13"), converter=TF2ONNX_TF215,
-              source="Google's mediapipe 0.10.21 wheel on PyPI (cp311 manylinux_2_28_x86_64), Apache-2.0"),
-    ),
-    "hand-landmark-full": (
-        Route("pip:mediapipe==0.10.21", "11c272b891e1a99ab034208e23937a8008388cf11ed2a9d776ed3d01d0ba00e3",
-              member="mediapipe/modules/hand_landmark/hand_landmark_full.tflite",
-              archive_sha256="05dc4a9e593655a79558d05d6227d31018c2537a4bd3362b51e230cf22aecfe3",
-              convert=("--opset", "13"), converter=TF2ONNX_TF215,
-              source="Google's mediapipe 0.10.21 wheel on PyPI (cp311 manylinux_2_28_x86_64), Apache-2.0"),
-    ),
-    "palm-detection-full": (
-        Route("pip:mediapipe==0.10.21", "1b14e9422c6ad006cde6581a46c8b90dd573c07ab7f3934b5589e7cea3f89a54",
-              member="mediapipe/modules/palm_detection/palm_detection_full.tflite",
-              archive_sha256="05dc4a9e593655a79558d05d6227d31018c2537a4bd3362b51e230cf22aecfe3",
-              convert=("--opset", "13"), converter=TF2ONNX_TF215,
-              source="Google's mediapipe 0.10.21 wheel on PyPI (cp311 manylinux_2_28_x86_64), Apache-2.0"),
-    ),
+    "blazepose-full": (_mediapipe("pose_landmark/pose_landmark_full.tflite",
+                                 "e9a5c5cb17f736fafd4c2ec1da3b3d331d6edbe8a0d32395855aeb2cdfd64b9f"),),
+    "hand-landmark-full": (_mediapipe("hand_landmark/hand_landmark_full.tflite",
+                                     "11c272b891e1a99ab034208e23937a8008388cf11ed2a9d776ed3d01d0ba00e3"),),
+    "palm-detection-full": (_mediapipe("palm_detection/palm_detection_full.tflite",
+                                      "1b14e9422c6ad006cde6581a46c8b90dd573c07ab7f3934b5589e7cea3f89a54"),),
 }
 
 
