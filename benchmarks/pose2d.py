@@ -38,7 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from pipeline.core.params import load_params, stage_params  # noqa: E402
 from pipeline.ingest.media import ffmpeg_exe, iter_frames, probe  # noqa: E402
 from pipeline.ingest.segmentvideo import SegmentVideo  # noqa: E402
-from pipeline.pose.models.loading import load_pose_models, model_files  # noqa: E402
+from pipeline.pose.models.loading import load_pose_models, worker_files  # noqa: E402
 from pipeline.pose.pose2d import Pose2dOptions, collect_poses, estimate_segment, find_people, lift_dark  # noqa: E402
 from pipeline.pose.tracking import assign_tracks  # noqa: E402
 
@@ -83,7 +83,7 @@ def configured(overrides: dict) -> tuple[dict, Pose2dOptions]:
 
 
 def load_models(params: dict):
-    files, _ = model_files(ROOT, params)
+    files = worker_files(ROOT, params)
     return load_pose_models(files)
 
 

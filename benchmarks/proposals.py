@@ -26,7 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from pipeline.core.params import load_params, stage_params  # noqa: E402
 from pipeline.ingest.media import probe  # noqa: E402
-from pipeline.pose.models.loading import load_pose_models, model_files, model_names  # noqa: E402
+from pipeline.pose.models.loading import load_pose_models, model_names, worker_files  # noqa: E402
 from pipeline.pose.pose2d import Pose2dOptions  # noqa: E402
 from pipeline.pose.propose import ProposeOptions, boundary_errors, propose, timeline  # noqa: E402
 from tests.pose.test_propose import PARTS, assemble  # noqa: E402
@@ -70,7 +70,7 @@ def main() -> int:
     opts = ProposeOptions.from_params(stage_params(params, "propose_segments"))
     pose_params = stage_params(params, "pose2d")
     pose_params = {**pose_params, "pose_model": model_names(pose_params["pose_model"])[0]}
-    files, _ = model_files(ROOT, pose_params)
+    files = worker_files(ROOT, pose_params)
     models = load_pose_models(files)
     pose_opts = dataclasses.replace(Pose2dOptions.from_params(pose_params), confirm_score=0.0)
     rows = []

@@ -15,7 +15,7 @@ from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint
 from pipeline.ingest.catalog import read_index
 from pipeline.ingest.segmentvideo import SegmentVideo
-from pipeline.pose.models.loading import model_files, model_hashes
+from pipeline.pose.models.loading import model_hashes, worker_files
 from pipeline.pose.models.session import describe
 from pipeline.pose.pose2dfile import SCHEMA_VERSION, SegmentInfo
 
@@ -60,7 +60,7 @@ def run(root: Path) -> None:
         planned = {p.outputs[0] for _, parts in split for p in parts}
         for stale in set(part_files(root / POSE2D)) - planned:
             stale.unlink()
-        files, _ = model_files(root, params)
+        files = worker_files(root, params)
         log.info("models run on %s (pose2d.device: %s)", describe(files.device, files.threads), files.device)
         for path, runtime, precision in files.runtimes:
             log.info("%s runs in %s (%s)", Path(path).name, runtime, precision)

@@ -158,7 +158,7 @@ def load_models(root: Path, params: dict, regions: str) -> dict:
     """What ``evaluate_hands`` needs for ``regions``, from the project (or the models' search path) and
     the pose2d section ``params``: the hand model, and the body models or the palm detector."""
     from pipeline.pose.models.fetch import resolve_model
-    from pipeline.pose.models.loading import load_pose_models, model_files
+    from pipeline.pose.models.loading import load_pose_models, worker_files
     from pipeline.pose.models.session import create_session
     from pipeline.pose.palms import PalmDetector
     from pipeline.pose.pose2d import Pose2dOptions
@@ -168,7 +168,7 @@ def load_models(root: Path, params: dict, regions: str) -> dict:
     if "palm" in regions:
         models["palms"] = PalmDetector(create_session(resolve_model("palm-detection-full", root)))
     if "body" in regions:
-        pose_models = load_pose_models(model_files(root, params)[0])
+        pose_models = load_pose_models(worker_files(root, params))
         models["body"] = (pose_models.detector, pose_models.pose)
     return models
 

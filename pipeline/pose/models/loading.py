@@ -46,15 +46,9 @@ def model_names(value: str | list[str]) -> list[str]:
     return [n.strip() for n in names if n.strip()]
 
 
-def model_hashes(root: Path, params: dict) -> dict[str, str]:
-    """What the models are, as an input of every file they make: each file's SHA-256, and the runtime
-    where it is not ONNX Runtime's f32 (it computes other numbers). Checks what ``model_files`` checks."""
-    return model_files(root, params, sessions=False)[1]
-
-
-def model_files(root: Path, params: dict, sessions: bool = True) -> tuple[ModelFiles, dict[str, str]]:
-    """Resolve every model in the main process, so a missing one is one clear error up front."""
-    from pipeline.core.storage import sha256_file
+def _chosen(root: Path, params: dict) -> tuple[list, list, dict[str, Path], str, dict[str, tuple[str, str]]]:
+    """(detector specs, pose specs, each model's file, the device, each model's runtime and precision),
+    checked in the main process, so a missing model or a bad runtime is one clear error up front."""
     from pipeline.pose.models.fetch import resolve_model
     from pipeline.pose.models.registry import get_spec
 
@@ -70,19 +64,35 @@ def model_files(root: Path, params: dict, sessions: bool = True) -> tuple[ModelF
                                             str(params.get("precision", "auto")), device) for spec in dets + poses}
     except (ValueError, RuntimeError) as exc:
         raise InputError(root / "params.yaml", f"pose2d.{exc}") from None
-    other = {name: label for name in paths if (label := runtime_label(*chosen[name]))}  # not ONNX Runtime f32
+    return dets, poses, paths, device, chosen
+
+
+def model_hashes(root: Path, params: dict) -> dict[str, str]:
+    """What the models are, as an input of every file they make: each file's SHA-256, and the runtime
+    where it is not ONNX Runtime's f32 (it computes other numbers). No model is loaded."""
+    from pipeline.core.storage import sha256_file
+
+    _, _, paths, _, chosen = _chosen(root, params)
     hashes = {name: sha256_file(path) for name, path in paths.items()}
-    hashes.update({f"{name}@runtime": label for name, label in other.items()})
-    if not sessions:
-        return ModelFiles((), ()), hashes
+    hashes.update({f"{name}@runtime": label for name in paths if (label := runtime_label(*chosen[name]))})
+    return hashes
+
+
+def worker_files(root: Path, params: dict) -> ModelFiles:
+    """What a worker needs to build its sessions (``load_pose_models``)."""
     from pipeline.pose.pose2d import Pose2dOptions
 
-    files = ModelFiles(tuple((str(paths[d.name]), d.kind, d.input_size) for d in dets),
-                       tuple((str(paths[p.name]), p.kind, p.input_size) for p in poses),
-                       int(params.get("threads", 1)), Pose2dOptions.from_params(params).detector_floor,
-                       float(params.get("crop_padding", 1.25)), device,
-                       tuple((str(paths[name]), *chosen[name]) for name in other))
-    return files, hashes
+    dets, poses, paths, device, chosen = _chosen(root, params)
+    return ModelFiles(tuple((str(paths[d.name]), d.kind, d.input_size) for d in dets),
+                      tuple((str(paths[p.name]), p.kind, p.input_size) for p in poses),
+                      int(params.get("threads", 1)), Pose2dOptions.from_params(params).detector_floor,
+                      float(params.get("crop_padding", 1.25)), device,
+                      tuple((str(paths[name]), *chosen[name]) for name in paths if runtime_label(*chosen[name])))
+
+
+def model_files(root: Path, params: dict) -> tuple[ModelFiles, dict[str, str]]:
+    """``worker_files`` and ``model_hashes`` together."""
+    return worker_files(root, params), model_hashes(root, params)
 
 
 BATCHED_KINDS = ("tinypose", "blazepose")  # published with a batch of 1: on a GPU, edited to take a frame's crops
