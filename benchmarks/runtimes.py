@@ -28,16 +28,11 @@ import numpy as np
 
 from pipeline.core.storage import write_json
 from pipeline.pose.models.fetch import resolve_model
+from pipeline.pose.models.loading import unused_outputs
 from pipeline.pose.models.registry import get_spec
 from pipeline.pose.models.session import create_session, openvino_available
 
 CONFIGS = (("onnxruntime", "f32"), ("openvino", "f32"), ("openvino", "bf16"))
-
-
-def _unused(kind: str):
-    from pipeline.pose.models.loading import unused_outputs
-
-    return unused_outputs(kind)
 
 
 def _feed(session, image: np.ndarray, size: tuple[int, int]) -> dict:
@@ -72,7 +67,7 @@ def main() -> None:
         path = resolve_model(name)
         for runtime, precision in CONFIGS:
             for threads in (1, 2):
-                session = create_session(Path(path), threads, unused_outputs=_unused(spec.kind), runtime=runtime,
+                session = create_session(Path(path), threads, unused_outputs=unused_outputs(spec.kind), runtime=runtime,
                                          precision=precision, device="cpu")
                 feed = _feed(session, image, spec.input_size)
                 outputs = [o.name for o in session.get_outputs()]
