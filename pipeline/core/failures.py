@@ -10,9 +10,10 @@ import pyarrow as pa
 
 from pipeline.core.errors import Dance3dError
 from pipeline.core.paths import REPORTS
-from pipeline.core.storage import read_rows, write_parquet
+from pipeline.core.storage import read_rows, write_rows
 
 FAILURES_FILE = "_failures.parquet"
+FAILURES_SCHEMA = pa.schema([(name, pa.string()) for name in ("item", "stage", "error_class", "message", "time")])
 
 
 @dataclass(frozen=True)
@@ -39,12 +40,9 @@ def write_failures(folder: Path, stage: str, failures: list[Failure], total: int
     ``reports/failures_<stage>.json`` of the project (``folder`` is ``<project>/data/<stage>``); the
     shard stage sums them (``failure_totals``) into the corpus's headline ``failed_share``.
     """
-    columns = ["item", "stage", "error_class", "message", "time"]
     rows = [asdict(f) for f in sorted(failures, key=lambda f: f.item)]
     path = Path(folder) / FAILURES_FILE
-    if not (path.exists() and read_rows(path) == rows):  # the same rows are not rewritten (pyarrow imports pandas)
-        table = pa.table({c: pa.array([r[c] for r in rows], pa.string()) for c in columns})
-        write_parquet(table, path, schema_version=1, extra={"stage": stage})
+    write_rows(rows, FAILURES_SCHEMA, path, schema_version=1, extra={"stage": stage})
     if total is not None:
         from pipeline.core.storage import write_json
 

@@ -130,24 +130,28 @@ def write_parquet(
 
 
 def write_rows(rows: list[dict[str, Any]], schema: pa.Schema, path: Path, *, schema_version: int,
-               params: Mapping[str, Any] | None = None) -> None:
-    """A small table (a catalogue, an index) from its rows, written as ``write_parquet`` writes, and
-    not rewritten when the file already holds these rows with this version and these params: the file
-    stays as it is and a stage with nothing new to do does not build a table (pyarrow imports pandas to
-    build one, 0.25 s)."""
+               params: Mapping[str, Any] | None = None, extra: Mapping[str, Any] | None = None) -> None:
+    """A small table (a catalogue, an index, a failure table) from its rows, written as ``write_parquet``
+    writes, and not rewritten when the file already holds these rows with this version, these params and
+    this ``extra`` metadata: the file stays as it is and a stage with nothing new to do does not build a
+    table (pyarrow imports pandas to build one, 0.25 s)."""
     path = Path(path)
     if path.exists():
+        def stored(value: Any) -> Any:  # as write_parquet's metadata holds it
+            return json.loads(json.dumps(value, sort_keys=True, default=str))
+
         try:
             meta = read_meta(path)
             same = (meta.get("schema_version") == schema_version
-                    and meta.get("params") == json.loads(json.dumps(_without_execution(dict(params or {})),
-                                                                    sort_keys=True, default=str))
+                    and meta.get("params") == stored(_without_execution(dict(params or {})))
+                    and all(meta.get(key) == stored(value) for key, value in dict(extra or {}).items())
                     and read_rows(path) == [{name: row.get(name) for name in schema.names} for row in rows])
         except Exception:  # unreadable: rewrite it
             same = False
         if same:
             return
-    write_parquet(pa.Table.from_pylist(rows, schema=schema), path, schema_version=schema_version, params=params)
+    write_parquet(pa.Table.from_pylist(rows, schema=schema), path, schema_version=schema_version, params=params,
+                  extra=extra)
 
 
 def _leaf_columns(schema: pa.Schema) -> tuple[list[str], list[str]]:

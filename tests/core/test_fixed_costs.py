@@ -104,6 +104,8 @@ def test_a_catalogue_with_the_same_rows_and_params_is_not_rewritten(tmp_path: Pa
         write_rows(changed_rows, schema, path, schema_version=version, params=params)
         assert read_rows(path) == changed_rows and read_meta(path)["schema_version"] == version
         assert read_meta(path)["params"] == params
+    write_rows(rows[:1], schema, path, schema_version=2, params={"retries": 4}, extra={"stage": "download"})
+    assert read_meta(path)["stage"] == "download"  # other metadata: written again
 
 
 def test_a_stage_with_nothing_new_to_do_imports_only_what_its_check_needs(built_demo: Path, tmp_path: Path) -> None:
