@@ -13,13 +13,13 @@ import sys
 from pathlib import Path
 
 from pipeline.core.deferred import Deferred
-from pipeline.core.itemstage import WorkItem, is_up_to_date, run_item_stage
+from pipeline.core.itemstage import WorkItem, run_item_stage
 from pipeline.core.params import load_params, stage_params
 from pipeline.core.paths import RAW, SEGMENT_PROPOSALS
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint, item_files
 from pipeline.ingest.catalog import read_ledger
-from pipeline.pose.models.loading import model_hashes, model_names, worker_files
+from pipeline.pose.models.loading import model_hashes, model_names
 from pipeline.pose.propose import SCHEMA_VERSION, SUMMARY, ProposeOptions, propose_video, write_summary
 
 log = logging.getLogger("dance3d.propose_segments")
@@ -53,11 +53,10 @@ def run(root: Path) -> None:
             log.info("%s: %d proposed segments, %.1f of %.1f s", video_id, r["segments"], r["seconds"], r["duration"])
         log.info("proposals of every video: %s", path.relative_to(root))
 
-    files = None if all(is_up_to_date(item) for item in items) else worker_files(root, pose_params)
+    files = Deferred("pipeline.pose.models.loading:worker_files", (root, pose_params))  # only for work
     run_item_stage("propose_segments", items, propose_video, out_dirs=[root / SEGMENT_PROPOSALS], params=params,
                    setup="pipeline.pose.models.loading:load_pose_models", setup_args=(files,), unit="video",
-                   keep_files=frozenset({SUMMARY}),
-                   finish=summary)
+                   keep_files=frozenset({SUMMARY}), finish=summary)
 
 
 def main() -> int:

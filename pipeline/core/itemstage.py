@@ -87,8 +87,8 @@ def run_item_stage(
     ``keep_files`` names stage files in ``out_dirs`` that are not item outputs (e.g. an index);
     ``finish(report)`` runs before the failure ratio is checked, so what was done is kept;
     ``light``: the first items run in this process (``LIGHT_INLINE_SECONDS``), not in workers.
-    ``fn`` and ``setup`` may be named ``"module:attribute"`` and payloads may be ``Deferred``
-    (pipeline/core/deferred.py): they are imported and made only if some item is to be done."""
+    ``fn`` and ``setup`` may be named ``"module:attribute"``, and payloads and ``setup_args`` may be
+    ``Deferred`` (pipeline/core/deferred.py): they are imported and made only if some item is to be done."""
     out_dirs = list(out_dirs)
     only = _ONLY.get()
     for folder in out_dirs:
@@ -109,6 +109,7 @@ def run_item_stage(
     todo.sort(key=lambda item: -item.size)
     if todo:
         fn, setup = resolve(fn), (resolve(setup) if setup is not None else None)
+        setup_args = tuple(make_payload(arg) for arg in setup_args)
         todo = [dataclasses.replace(item, payload=make_payload(item.payload)) for item in todo]
     executor = str(params.get("executor", "local"))
     if executor not in ("local", "ray"):

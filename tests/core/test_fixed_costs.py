@@ -77,6 +77,26 @@ def test_a_deferred_payload_is_made_only_for_an_item_that_is_to_be_done(tmp_path
     assert not (made / "a").exists() and (made / "b").is_dir()
 
 
+def _refuse(reason: str) -> None:
+    raise AssertionError(reason)
+
+
+def test_deferred_setup_arguments_are_made_only_when_there_is_work(tmp_path: Path) -> None:
+    from pipeline.core.deferred import Deferred
+    from pipeline.core.itemstage import WorkItem, run_item_stage
+
+    items = [WorkItem("a", "fp", (tmp_path / "out" / "a.parquet",), "a")]
+    refusal = Deferred(f"{__name__}:_refuse", ("the setup's arguments were made for no work",))
+    report = run_item_stage("demo", items, len, out_dirs=[tmp_path / "out"], params={"workers": 1},
+                            setup=f"{__name__}:_refuse", setup_args=(refusal,), up_to_date=lambda item: True)
+    assert report.skipped == ["a"] and report.done == {}
+    work = [WorkItem("a", "fp", (tmp_path / "out" / "a.parquet",), 1)]
+    made = run_item_stage("demo", work, "operator:add", out_dirs=[tmp_path / "out"], params={"workers": 1},
+                          setup="builtins:int", setup_args=(Deferred("builtins:float", ("7",)),),
+                          up_to_date=lambda item: False)
+    assert made.done == {"a": 8}  # the worker's state int(float("7")), plus the payload 1
+
+
 def test_a_deferred_payload_may_hold_deferred_parts() -> None:
     from fractions import Fraction
 
