@@ -231,5 +231,21 @@ def column_array(table: pa.Table, name: str, shape: tuple[int, ...] = (), dtype:
     """A column as numpy: fixed-size lists become (rows, *shape)."""
     column = table.column(name).combine_chunks()
     if pa.types.is_fixed_size_list(column.type):
-        return np.asarray(column.flatten(), dtype).reshape(table.num_rows, *shape)
-    return column.to_numpy(zero_copy_only=False)
+        return to_numpy(column.flatten()).astype(dtype, copy=False).reshape(table.num_rows, *shape)
+    return to_numpy(column)
+
+
+def to_numpy(array: pa.Array) -> np.ndarray:
+    """An Arrow array as numpy. Numbers and booleans without nulls are read from their buffers:
+    pyarrow's own conversion imports pandas (0.25 s at the start of a stage that reads one table)."""
+    kind = array.type
+    if len(array) == 0 or array.buffers()[1] is None:
+        return array.to_numpy(zero_copy_only=False)
+    if array.null_count == 0 and (pa.types.is_integer(kind) or pa.types.is_floating(kind)):
+        code = "f" if pa.types.is_floating(kind) else "i" if pa.types.is_signed_integer(kind) else "u"
+        width = kind.bit_width // 8
+        return np.frombuffer(array.buffers()[1], np.dtype(f"<{code}{width}"), len(array), array.offset * width)
+    if array.null_count == 0 and pa.types.is_boolean(kind):
+        bits = np.unpackbits(np.frombuffer(array.buffers()[1], np.uint8), bitorder="little")
+        return bits[array.offset:array.offset + len(array)].astype(bool)
+    return array.to_numpy(zero_copy_only=False)

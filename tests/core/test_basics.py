@@ -7,6 +7,7 @@ import signal
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from pipeline.core.errors import InputError
@@ -189,3 +190,20 @@ def test_float_columns_are_stored_byte_stream_split_and_read_back_exactly(tmp_pa
     assert back.drop_columns([]).equals(table.replace_schema_metadata(back.schema.metadata))
     pq.write_table(table, tmp_path / "plain.parquet", compression="zstd")
     assert (tmp_path / "motion.parquet").stat().st_size < 0.8 * (tmp_path / "plain.parquet").stat().st_size
+
+
+@pytest.mark.parametrize("values", [np.arange(7, dtype=np.int32), np.arange(7, dtype=np.uint8),
+                                    np.linspace(0, 1, 7, dtype=np.float32), np.linspace(0, 1, 7),
+                                    np.arange(7) % 3 == 0, np.zeros(0, np.int64)])
+def test_an_arrow_column_reads_into_numpy_as_pyarrow_reads_it_at_any_offset(values: np.ndarray) -> None:
+    import pyarrow as pa
+
+    from pipeline.core.storage import to_numpy
+
+    whole = pa.array(values)
+    for array in (whole, whole.slice(2), whole.slice(3, 2)):
+        mine = to_numpy(array)
+        assert mine.dtype == array.to_numpy(zero_copy_only=False).dtype
+        assert np.array_equal(mine, array.to_numpy(zero_copy_only=False))
+    with_nulls = pa.array([1.0, None, 3.0])
+    assert np.isnan(to_numpy(with_nulls)[1])
