@@ -85,7 +85,7 @@ def write_clean(path: Path, clips: list[Clip], segment: SegmentInfo, *, spans_fr
 
 
 def read_clean(path: Path) -> CleanFile:
-    table = pq.read_table(path)
+    table = pq.ParquetFile(path).read()  # one file, not a dataset: pq.read_table imports pandas (clean's metrics)
     meta = read_meta(path)
     ids = np.array(table.column("clip_id").to_pylist())
     frame = column_array(table, "frame").astype(np.int64)

@@ -19,14 +19,9 @@ NEEDED = {
     # (CUDA or not) is ONNX Runtime's to say.
     "propose_segments": {"onnxruntime", "pandas"},  # + pandas: its summary is read back whole (propose.py)
     "pose2d": {"onnxruntime"},
-    # An unannotated segment's fingerprint holds the proposal options, whose module imports the tracker
-    # (SciPy's assignment); the clean files are read back whole for the stage's metrics (pandas).
-    "clean": {"scipy", "pandas"},
     # The shipped model is copied and its figures, in its metadata, written again (DVC expects them).
     "train_lifter": {"onnxruntime"},
     "train_contact": {"onnxruntime"},
-    # The world file's schema version lives beside the skeleton, which reaches the 2D model module (OpenCV).
-    "ground": {"cv2"},
 }
 STAGES = ("discover", "download", "propose_segments", "trim", "pose2d", "track", "clean", "train_lifter",
           "train_contact", "lift", "smooth", "resample", "ground", "audio")  # shard always rebuilds the corpus

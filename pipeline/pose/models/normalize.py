@@ -6,7 +6,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
 
 IMAGENET_MEAN_RGB = np.array([0.485, 0.456, 0.406], np.float32)  # of pictures scaled to [0, 1]
@@ -34,6 +33,8 @@ class InputTable:
 
     def __call__(self, pictures: np.ndarray) -> np.ndarray:
         """(N x H x W x 3) or (H x W x 3) uint8 BGR pictures -> contiguous float32 (N x 3 x H x W)."""
+        import cv2  # imported where used: the mocap skeleton reaches this package in stages that need no OpenCV
+
         pictures = np.asarray(pictures, np.uint8)
         batch = pictures[None] if pictures.ndim == 3 else pictures
         out = np.stack([cv2.LUT(p, self.table) for p in batch]).transpose(0, 3, 1, 2)

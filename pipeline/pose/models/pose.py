@@ -9,7 +9,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from pipeline.pose.models.batching import run_batched
@@ -62,13 +61,24 @@ def crop_transform(box: np.ndarray, out_w: int, out_h: int, padding: float = 1.2
 
 def to_image(points: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     """Map crop-pixel points (..., 2) back to the image through the inverse of the 2x3 ``matrix``."""
+    import cv2  # imported where used: the mocap skeleton's FEET reach this module in stages that need no OpenCV
+
     inverse = cv2.invertAffineTransform(np.asarray(matrix, np.float64))
     return points @ inverse[:, :2].T + inverse[:, 2]
 
 
 def warp(image: np.ndarray, matrix: np.ndarray, out_w: int, out_h: int) -> np.ndarray:
+    import cv2
+
     return cv2.warpAffine(image, matrix, (out_w, out_h), flags=cv2.INTER_LINEAR,
                           borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0))
+
+
+def rgb_crop(image: np.ndarray, matrix: np.ndarray, out_w: int, out_h: int) -> np.ndarray:
+    """The crop ``matrix`` takes from a BGR ``image``, in RGB."""
+    import cv2
+
+    return cv2.cvtColor(warp(image, matrix, out_w, out_h), cv2.COLOR_BGR2RGB)
 
 
 class MoveNetPose:
@@ -85,7 +95,7 @@ class MoveNetPose:
         w, h = self.size
         for i, box in enumerate(boxes):
             m = crop_transform(box, w, h, self.padding)
-            crop = cv2.cvtColor(warp(image, m, w, h), cv2.COLOR_BGR2RGB)
+            crop = rgb_crop(image, m, w, h)
             (raw,) = self.session.run(None, {self.input_name: crop[None]})
             yx_score = raw.reshape(17, 3)
             crop_xy = np.stack([yx_score[:, 1] * w, yx_score[:, 0] * h], axis=-1)
@@ -126,7 +136,7 @@ class RTMPose:
             return PoseBatch.body_only(np.zeros((0, 17, 3), np.float32))
         w, h = self.size
         matrices = [crop_transform(box, w, h, self.padding) for box in boxes]
-        crops = np.stack([cv2.cvtColor(warp(image, m, w, h), cv2.COLOR_BGR2RGB) for m in matrices])
+        crops = np.stack([rgb_crop(image, m, w, h) for m in matrices])
         batch = ((crops.astype(np.float32) - RGB_MEAN) / RGB_STD).transpose(0, 3, 1, 2)
         simcc_x, simcc_y = self.session.run([self.x_name, self.y_name], {self.input_name: np.ascontiguousarray(batch)})
         decoded = decode_simcc(simcc_x, simcc_y, self.split_ratio)
@@ -251,7 +261,7 @@ class BlazePose:
         """One call on the crops ``matrices`` give: per crop, landmarks, presence, world, strength."""
         if not matrices:
             return []
-        crops = np.stack([cv2.cvtColor(warp(image, m, self.size, self.size), cv2.COLOR_BGR2RGB) for m in matrices])
+        crops = np.stack([rgb_crop(image, m, self.size, self.size) for m in matrices])
         landmarks, presence, world, heatmaps = run_batched(
             self.session, [self.landmarks_name, self.presence_name, self.world_name, self.heatmap_name],
             self.input_name, crops.astype(np.float32) / 255.0)
