@@ -24,7 +24,7 @@ NEEDED = {
     "train_contact": {"onnxruntime"},
 }
 STAGES = ("discover", "download", "propose_segments", "trim", "pose2d", "track", "clean", "train_lifter",
-          "train_contact", "lift", "smooth", "resample", "ground", "audio")  # shard always rebuilds the corpus
+          "train_contact", "lift", "smooth", "resample", "ground", "audio", "shard")
 
 
 def _loaded_after(code: str, cwd: Path = PROJECT) -> set[str]:
