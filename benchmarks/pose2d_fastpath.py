@@ -7,9 +7,10 @@ of --runs for the time), the pose2d + track work of the stage is run and compare
 reference (``fps: 0, det_every: 1``, the rest of params.yaml's pose2d section):
 
 - ``fps``: frames per wall-second, and ``speed``: the reference's time over this one;
-- ``posed``: the share of frames the models posed (keyframes, and the frames between two whose
-  people differ: ``pose_changes``); ``detected``: the share the
-  detector ran on (every k-th posed frame, and on demand);
+- ``posed``: the share of people (rows) the models posed (on keyframes, and the people who came or
+  went between two keyframes whose people differ: ``pose_changes``, ``changes_only``);
+  ``detected``: the share of frames with a box from the detector (every k-th posed frame, on
+  demand, and newcomers found between keyframes);
 - ``people``: people found per frame (the reference's beside it);
 - ``oks``: mean OKS of each of the reference's people against the configuration's person matched
   to it in that frame (Hungarian on OKS; a reference person with no match counts 0). OKS as COCO
@@ -52,7 +53,7 @@ from pipeline.pose.tracking import COCO_SIGMAS, assign_tracks
 VISIBLE = 0.3
 REFERENCE = "fps=0,det_every=1"  # the models pose every frame, the detector runs on every frame
 DEFAULT = "params.yaml"  # the configuration as params.yaml has it
-DEFAULT_CONFIGS = [DEFAULT, "fps=8,pose_changes=0", "fps=12", "fps=0,det_every=5"]
+DEFAULT_CONFIGS = [DEFAULT, "fps=8,changes_only=1", "fps=8,pose_changes=0", "fps=12"]
 
 
 def oks(truth: np.ndarray, area: float, other: np.ndarray) -> float:
@@ -74,13 +75,15 @@ def overrides(config: str) -> dict:
 def run(clip: Path, models, opts) -> tuple[float, dict]:
     info = probe(clip)
     fps, view = info.fps, SegmentVideo.whole(clip, info)  # as the stage runs: on a segment view
-    detected = [0, 0, 0]  # frames detected, posed, seen
+    detected = [0, 0, 0, 0]  # frames with a detected box, frames seen, people posed, people seen
 
     def counted(frames):
         for frame in frames:
-            detected[0] += frame.detected
-            detected[1] += not frame.interpolated
-            detected[2] += 1
+            people = len(frame.scores)
+            detected[0] += bool(np.any(frame.detected))
+            detected[1] += 1
+            detected[2] += int(np.sum(~np.broadcast_to(np.asarray(frame.interpolated, bool), (people,))))
+            detected[3] += people
             yield frame
 
     start = time.perf_counter()
@@ -89,8 +92,8 @@ def run(clip: Path, models, opts) -> tuple[float, dict]:
     return time.perf_counter() - start, {"frame": poses.frame, "box": poses.box, "kp": poses.keypoints,
                                          "feet": poses.feet,
                                          "track": tracks, "frames": frames,
-                                         "detected": detected[0] / max(detected[2], 1),
-                                         "posed": detected[1] / max(detected[2], 1)}
+                                         "detected": detected[0] / max(detected[1], 1),
+                                         "posed": detected[2] / max(detected[3], 1)}
 
 
 def compare(ref: dict, run_: dict) -> dict:

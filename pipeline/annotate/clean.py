@@ -1,7 +1,7 @@
 """Apply a manifest to a segment's tracks: every kept span becomes clips of one dancer.
 
 Inside a span, gaps of up to ``max_gap`` missing frames are filled by linear
-interpolation of the box, keypoints, feet and world landmarks (and marked ``interpolated``); a longer gap
+interpolation of the box, keypoints and feet (and marked ``interpolated``); a longer gap
 splits the span into separate clips. Clips shorter than ``min_clip_seconds`` are dropped
 and counted. Clip ids are ``<segment_id>_<track_id>_<k>``, k counting a track's clips
 from 0 in time order.

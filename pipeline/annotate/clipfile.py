@@ -3,9 +3,8 @@
 One row per clip frame: clip_id (``<segment_id>_<track_id>_<k>``), track_id, frame
 (contiguous within a clip), time (frame / fps, segment clock), box, keypoints (COCO-17
 x, y, score), feet (as in the pose2d table), interpolated (the frame was a gap filled by
-interpolation). BlazePose's world landmarks stay in the pose2d table: nothing after it reads them. Metadata: the
-segment, whether spans came from a manifest or a proposal, and how many clips were too
-short to keep.
+interpolation). Metadata: the segment, whether spans came from a manifest or a proposal, and how
+many clips were too short to keep.
 """
 
 from __future__ import annotations

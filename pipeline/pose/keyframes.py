@@ -2,11 +2,14 @@
 
 A dancer's 2D keypoints change smoothly over a few frames at 24-60 fps, while the pose models
 cost the same on every frame: running them on every k-th frame (``pose2d.fps``, the keyframes'
-rate) and drawing each person's keypoints, feet, world landmarks and box linearly between two
+rate) and drawing each person's keypoints, feet and box linearly between two
 keyframes divides the models' work by k. A person is followed from one keyframe to the next by
 their boxes' overlap; a person seen on only one of the two keyframes is held from it over the
 half of the gap nearer to it.
 A joint is as confident in between as it is on the less confident of its two keyframes.
+Where the two keyframes' people differ (someone came or went: :func:`people_change`), the frames
+between are looked at: the detector runs on each, and the boxes that are none of the people on both
+keyframes (:func:`newcomers`) are posed there, while those people are still drawn.
 (Measured against posing every frame in ``benchmarks/pose2d_fastpath.py``; docs/pipeline/pose2d.md, "2D speed".)
 """
 
@@ -14,7 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any, Iterator
+from typing import Any, Iterator, Mapping
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -57,6 +60,21 @@ def people_change(a: Any, b: Any, min_height: float = CHANGE_MIN_HEIGHT) -> bool
     return bool((lone >= min_height * tallest).any())
 
 
+def drawn_boxes(a: np.ndarray, b: np.ndarray, w: float) -> np.ndarray:
+    """(M x 4) the boxes of the people on both keyframes (boxes ``a`` and ``b``), drawn a fraction
+    ``w`` of the way from ``a`` to ``b``."""
+    pairs = match_people(a, b)
+    ia, ib = [i for i, _ in pairs], [j for _, j in pairs]
+    return (np.asarray(a, np.float64)[ia] * (1 - w) + np.asarray(b, np.float64)[ib] * w).reshape(-1, 4)
+
+
+def newcomers(found: np.ndarray, drawn: np.ndarray) -> np.ndarray:
+    """Indices of the boxes ``found`` on a frame between keyframes that are none of the people
+    ``drawn`` there (:func:`drawn_boxes`): one found box per drawn person, matched by overlap."""
+    taken = {j for _, j in match_people(drawn, found)}
+    return np.array([k for k in range(len(found)) if k not in taken], int)
+
+
 def lerp_points(a: np.ndarray, b: np.ndarray, w: float | np.ndarray) -> np.ndarray:
     """(..., 3) points a fraction ``w`` of the way from ``a`` to ``b``: x and y drawn linearly, the
     score the smaller of the two."""
@@ -82,12 +100,14 @@ def drawn_between(points: np.ndarray, step: int) -> np.ndarray:
     return out
 
 
-def in_between(a: Any, b: Any, slots: list[tuple[int, float]], top_k: int = 0) -> Iterator[Any]:
+def in_between(a: Any, b: Any, slots: list[tuple[int, float]], top_k: int = 0,
+               posed: Mapping[int, Any] | None = None) -> Iterator[Any]:
     """The frames ``slots`` ((frame, time), between keyframes ``a`` and ``b``) as interpolated
     ``FramePoses``: a person on both keyframes drawn between them; one on only one keyframe held
     from it over the half of the gap nearer to it (they were among the ``top_k`` largest there but
-    not on the other, or came in or went out of sight); people in the order of their boxes' area,
-    largest first, at most ``top_k`` (0: all)."""
+    not on the other, or came in or went out of sight), unless the frame is in ``posed`` (frame ->
+    the ``FramePoses`` of the newcomers posed on it): then those posed people take their place;
+    people in the order of their boxes' area, largest first, at most ``top_k`` (0: all)."""
     pairs = match_people(a.boxes, b.boxes)
     ia = np.array([i for i, _ in pairs], int)
     ib = np.array([j for _, j in pairs], int)
@@ -96,18 +116,21 @@ def in_between(a: Any, b: Any, slots: list[tuple[int, float]], top_k: int = 0) -
     for frame, time in slots:
         w = (frame - a.frame) / (b.frame - a.frame)
         alone, near = (only_a, a) if w <= 0.5 else (only_b, b)
+        if posed is not None and frame in posed:
+            near = posed[frame]  # the newcomers, as posed on this frame
+            alone = np.arange(len(near.scores))
         boxes = np.concatenate([a.boxes[ia] * (1 - w) + b.boxes[ib] * w, near.boxes[alone]])
         scores = np.concatenate([np.minimum(a.scores[ia], b.scores[ib]), near.scores[alone]])
         keypoints = np.concatenate([lerp_points(a.keypoints[ia], b.keypoints[ib], w), near.keypoints[alone]])
         feet = np.concatenate([lerp_points(a.feet[ia], b.feet[ib], w), near.feet[alone]])
-        world = np.concatenate([a.world[ia] * (1 - w) + b.world[ib] * w, near.world[alone]])
+        drawn = np.r_[np.ones(len(ia), bool), np.full(len(alone), near is a or near is b)]
         area = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
         order = np.argsort(-area, kind="stable")[: top_k or None]
         yield dataclasses.replace(
             a, frame=frame, time=time, boxes=boxes[order].astype(np.float32),
             scores=scores[order].astype(np.float32), keypoints=keypoints[order].astype(np.float32),
-            feet=feet[order].astype(np.float32), world=world[order].astype(np.float32),
-            detected=False, interpolated=True)
+            feet=feet[order].astype(np.float32),
+            detected=~drawn[order], interpolated=drawn[order])
 
 
 def held(a: Any, slots: list[tuple[int, float]]) -> Iterator[Any]:

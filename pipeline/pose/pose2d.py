@@ -31,10 +31,10 @@ import numpy as np
 from pipeline.core.threads import threaded
 from pipeline.ingest.media import Frame
 from pipeline.ingest.segmentvideo import SegmentVideo, frames_of
-from pipeline.pose.keyframes import held, in_between, keyframe_step, people_change
+from pipeline.pose.keyframes import drawn_boxes, held, in_between, keyframe_step, newcomers, people_change
 from pipeline.pose.models.detector import Detections, FusedDetector, PicoDetDetector, RTMDetDetector, largest
 from pipeline.pose.models.pose import BlazePose, BodyAndFeet, MoveNetPose, PoseBatch, RTMPose, TinyPose
-from pipeline.pose.pose2dfile import FEET, WORLD, Poses, SegmentInfo, write_pose2d
+from pipeline.pose.pose2dfile import FEET, Poses, SegmentInfo, write_pose2d
 from pipeline.pose.tracking import iou_matrix
 
 
@@ -48,7 +48,9 @@ class Pose2dOptions:
     carry_margin: float = 0.15     # carried box = keypoint extent grown by this share per side ...
     carry_framed: bool = True      # ... or framed as the detector last framed that person (box_framing)
     pose_changes: bool = True      # where someone is on only one of two keyframes, the frames between are
-                                   # posed too, not drawn (keyframes.people_change)
+                                   # looked at too, not only drawn (keyframes.people_change) ...
+    changes_only: bool = False     # ... and only the people who came or went are posed there, the others
+                                   # drawn (keyframes.newcomers; faster on crowds, less exact: reports/throughput.md)
     redetect_overlap: float = 0.3  # between detections, two carried people overlapping this much (IoU) ...
     redetect_joints: int = 6       # ... or a carried pose with fewer joints at confirm_joint_score, or one
                                    # lost: the detector runs on that frame after all (0: never on demand)
@@ -66,8 +68,7 @@ class Pose2dOptions:
     def from_params(params: dict) -> "Pose2dOptions":
         names = ("top_k", "fps", "det_every", "det_score", "confirm_score", "confirm_joints", "confirm_joint_score",
                  "confirm_min_height", "confirm_min_share", "min_joints", "dark_mean", "redetect_overlap",
-                 "redetect_joints", "carry_framed",
-                 "pose_changes")
+                 "redetect_joints", "carry_framed", "pose_changes", "changes_only")
         fields = {f: type(getattr(Pose2dOptions, f)) for f in names}
         return Pose2dOptions(**{f: kind(params[f]) for f, kind in fields.items() if f in params})
 
@@ -104,23 +105,27 @@ def _share_inside(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return inter / area[:, None]
 
 
-def find_people(image: np.ndarray, dets: Detections, pose, opts: Pose2dOptions) -> tuple[Detections, PoseBatch]:
+def find_people(image: np.ndarray, dets: Detections, pose, opts: Pose2dOptions,
+                known: np.ndarray | None = None) -> tuple[Detections, PoseBatch]:
     """The people among ``dets`` and their poses, the ``top_k`` largest first.
 
     Boxes at ``det_score`` or above are people if their pose has ``min_joints`` joints at
     ``confirm_joint_score`` (a detector's box around a poster or a whole test card has none);
     of the weaker ones (the ``top_k`` most confident), those at least ``confirm_min_height``
     tall and ``confirm_min_share`` of the tallest sure box's height whose pose has
-    ``confirm_joints`` such joints and that do not lie inside a sure box.
+    ``confirm_joints`` such joints and that do not lie inside a sure box. ``known``: boxes (M x 4)
+    of people already known on this image and not to be posed again (drawn between keyframes),
+    who count as sure people for those rules.
     """
+    known = np.zeros((0, 4), np.float32) if known is None else np.asarray(known, np.float32).reshape(-1, 4)
     strong = dets.scores >= opts.det_score
     sure = largest(Detections(dets.boxes[strong], dets.scores[strong]), opts.top_k)
     weak = np.flatnonzero(~strong)
     if opts.confirm_score > 0:  # worth a pose: tall enough, and not a part of a sure person (a lap, a torso)
-        box = dets.boxes[weak]
-        tallest = float((sure.boxes[:, 3] - sure.boxes[:, 1]).max(initial=0.0))
+        box, sure_boxes = dets.boxes[weak], np.concatenate([sure.boxes.reshape(-1, 4), known])
+        tallest = float((sure_boxes[:, 3] - sure_boxes[:, 1]).max(initial=0.0))
         worth = (box[:, 3] - box[:, 1] >= max(opts.confirm_min_height, opts.confirm_min_share * tallest)) & (
-            _share_inside(box, sure.boxes).max(1, initial=0.0) < 0.5)
+            _share_inside(box, sure_boxes).max(1, initial=0.0) < 0.5)
         weak = weak[worth]
         weak = weak[np.argsort(-dets.scores[weak], kind="stable")][: opts.top_k]
     else:
@@ -128,8 +133,9 @@ def find_people(image: np.ndarray, dets: Detections, pose, opts: Pose2dOptions) 
     body_model = pose.body if isinstance(pose, BodyAndFeet) else pose  # the feet only for the people kept
     batch: PoseBatch = body_model.estimate(image, sure.boxes)
     is_sure = _joints(batch.keypoints, opts) >= opts.min_joints
-    weak, weak_batch, confirmed = _confirm_largest_first(image, dets.boxes, weak, sure.boxes[is_sure], body_model,
-                                                         opts)
+    weak, weak_batch, confirmed = _confirm_largest_first(image, dets.boxes, weak,
+                                                         np.concatenate([sure.boxes[is_sure].reshape(-1, 4), known]),
+                                                         body_model, opts)
     batch = _joined(batch, weak_batch)
     boxes = np.concatenate([sure.boxes, dets.boxes[weak]]).reshape(-1, 4)
     scores = np.concatenate([sure.scores, dets.scores[weak]])
@@ -193,10 +199,21 @@ class FramePoses:
     boxes: np.ndarray      # Nx4
     scores: np.ndarray     # N
     keypoints: np.ndarray  # Nx17x3
-    detected: bool
+    detected: bool | np.ndarray  # (per person, or for all) the box is the detector's, not carried over
     feet: np.ndarray       # Nx4x3
-    world: np.ndarray      # Nx33x3 (NaN: the pose model gives none)
-    interpolated: bool = False  # drawn between two keyframes (keyframes.in_between), not posed
+    interpolated: bool | np.ndarray = False  # (per person, or for all) drawn between two keyframes
+                                             # (keyframes.in_between), not posed
+
+
+@dataclass(frozen=True)
+class _Newcomers:
+    """The people who came or went, posed on a frame between two keyframes whose people differ."""
+
+    frame: int
+    time: float
+    image: np.ndarray
+    dets: Detections
+    batch: PoseBatch
 
 
 def keypoint_extent(keypoints: np.ndarray, min_score: float) -> np.ndarray:
@@ -290,8 +307,9 @@ def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opt
     feet_model = pose if isinstance(pose, BodyAndFeet) else None
     body_model = pose.body if feet_model else pose
 
-    def people(frames: Iterator[tuple | Frame]) -> Iterator[tuple | Frame]:
+    def people(frames: Iterator[tuple | Frame]) -> Iterator[tuple | Frame | _Newcomers]:
         previous: Detections | None = None
+        previous_number = 0
         keypoints = np.zeros((0, 17, 3), np.float32)
         framing = np.zeros((0, 4), np.float32)  # how the detector framed each person (box_framing)
         waiting: list[Frame] = []  # the frames since the last keyframe
@@ -311,11 +329,14 @@ def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opt
                 dets, batch = find_people(image, found, body_model, opts)
                 framing = box_framing(dets.boxes, batch.keypoints, opts.carry_min_score, opts.carry_margin)
             if waiting and previous is not None and opts.pose_changes and people_change(previous, dets):
-                yield from (posed_now(frame) for frame in waiting)  # drawing them would guess
+                if opts.changes_only:  # drawing the newcomers would guess; the others are drawn
+                    yield from (posed_newcomers(frame, previous, previous_number, dets, number) for frame in waiting)
+                else:
+                    yield from (posed_now(frame) for frame in waiting)
             else:
                 yield from waiting
             waiting = []
-            previous, keypoints = dets, batch.keypoints
+            previous, previous_number, keypoints = dets, number, batch.keypoints
             yield number, time, image, dets, batch, found is not None
         yield from waiting
 
@@ -325,22 +346,39 @@ def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opt
         dets, batch = find_people(image, detector.detect(image), body_model, opts)
         return frame.index, frame.time, image, dets, batch, True
 
+    def posed_newcomers(frame: Frame, a: Detections, a_number: int, b: Detections, b_number: int) -> _Newcomers:
+        """A frame between keyframes ``a`` and ``b`` whose people differ: the people the detector finds
+        there who are none of those on both keyframes, posed as on a keyframe."""
+        image = lift_dark(frame.shown(), opts.dark_mean)
+        found = detector.detect(image)
+        drawn = drawn_boxes(a.boxes, b.boxes, (frame.index - a_number) / (b_number - a_number))
+        new = newcomers(found.boxes, drawn)
+        dets, batch = find_people(image, Detections(found.boxes[new], found.scores[new]), body_model, opts, drawn)
+        return _Newcomers(frame.index, frame.time, image, dets, batch)
+
     try:
         q = opts.queue_size
         stream = threaded(people(threaded(detected(threaded(decoded(), q, stop)), q, stop)), q, stop)
         keyframe: FramePoses | None = None
         between: list[Frame] = []  # frames since the last keyframe, waiting for the next
+        newcomers_on: dict[int, FramePoses] = {}  # ... and the people posed on some of them
         for item in stream:
             if isinstance(item, Frame):
                 between.append(item)
+                continue
+            if isinstance(item, _Newcomers):
+                batch = feet_model.complete(item.image, item.dets.boxes, item.batch) if feet_model else item.batch
+                newcomers_on[item.frame] = _frame_poses(item.frame, item.time, item.dets, batch, True)
+                between.append(Frame(item.frame, item.time, None))
                 continue
             number, time, image, dets, batch, was_detected = item
             if feet_model is not None:
                 batch = feet_model.complete(image, dets.boxes, batch)
             current = _frame_poses(number, time, dets, batch, was_detected)
             if between and keyframe is not None:
-                yield from in_between(keyframe, current, [(f.index, f.time) for f in between], opts.top_k)
-            between = []
+                yield from in_between(keyframe, current, [(f.index, f.time) for f in between], opts.top_k,
+                                      newcomers_on)
+            between, newcomers_on = [], {}
             yield current
             keyframe = current
         if between and keyframe is not None:  # a video file's frames after its last keyframe
@@ -350,8 +388,7 @@ def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opt
 
 
 def _frame_poses(number: int, time: float, people: Detections, batch: PoseBatch, detected: bool) -> FramePoses:
-    world = batch.world if batch.world is not None else np.full((len(batch), WORLD, 3), np.nan, np.float32)
-    return FramePoses(number, time, people.boxes, people.scores, batch.keypoints, detected, batch.feet, world)
+    return FramePoses(number, time, people.boxes, people.scores, batch.keypoints, detected, batch.feet)
 
 
 def needs_detection(previous: Detections | None, carried: Detections, keypoints: np.ndarray,
@@ -388,7 +425,7 @@ def _carry(previous: Detections | None, keypoints: np.ndarray, framing: np.ndarr
 def collect_poses(frames: Iterator[FramePoses], progress: Callable[[], None] | None = None) -> tuple[Poses, int]:
     """Collect per-person rows of every frame; returns them and the number of frames seen."""
     rows: dict[str, list] = {k: [] for k in ("frame", "time", "person", "box", "box_score", "keypoints", "detected",
-                                             "feet", "world", "interpolated")}
+                                             "feet", "interpolated")}
     seen = 0
     for fp in frames:
         seen += 1
@@ -399,13 +436,12 @@ def collect_poses(frames: Iterator[FramePoses], progress: Callable[[], None] | N
         rows["box"].append(np.asarray(fp.boxes, np.float32).reshape(n, 4))
         rows["box_score"].append(np.asarray(fp.scores, np.float32))
         rows["keypoints"].append(np.asarray(fp.keypoints, np.float32).reshape(n, 17, 3))
-        rows["detected"].append(np.full(n, fp.detected))
+        rows["detected"].append(np.broadcast_to(np.asarray(fp.detected, bool), (n,)))
         rows["feet"].append(np.asarray(fp.feet, np.float32).reshape(n, FEET, 3))
-        rows["world"].append(np.asarray(fp.world, np.float32).reshape(n, WORLD, 3))
-        rows["interpolated"].append(np.full(n, fp.interpolated))
+        rows["interpolated"].append(np.broadcast_to(np.asarray(fp.interpolated, bool), (n,)))
         if progress:
             progress()
-    empty = {"box": (0, 4), "keypoints": (0, 17, 3), "feet": (0, FEET, 3), "world": (0, WORLD, 3)}
+    empty = {"box": (0, 4), "keypoints": (0, 17, 3), "feet": (0, FEET, 3)}
     cat = {k: np.concatenate(v) if v else np.zeros(empty.get(k, (0,))) for k, v in rows.items()}
     return Poses(**cat), seen
 

@@ -3,8 +3,7 @@
 One row per detected person per frame (the top-k largest): frame, time (s, segment clock),
 person (rank by box area, 0 = largest), box (x1, y1, x2, y2, segment pixels), box_score,
 keypoints (COCO-17 x, y, score), feet (left heel, right heel, left toe, right toe as x, y,
-score; score 0 where the pose model has no feet), world (BlazePose's 33 metric world
-landmarks, metres, origin between the hips, image axes; NaN where no model gives them),
+score; score 0 where the pose model has no feet),
 detected (False: the box was carried over from the previous frame's keypoints), interpolated
 (True: the models did not run on this frame; it is drawn between two keyframes,
 :mod:`pipeline.pose.keyframes`). The file's
@@ -13,6 +12,8 @@ sha256.
 
 Version 2 added ``feet`` and ``world``; version-1 files are redone (their fingerprint
 no longer matches). Version 3 added ``interpolated`` (read as all False from version 2).
+Version 4 dropped ``world`` (BlazePose's 33 metric landmarks): two thirds of every file's bytes,
+and nothing after pose2d read them.
 """
 
 from __future__ import annotations
@@ -27,10 +28,9 @@ import pyarrow.parquet as pq
 
 from pipeline.core.storage import column_array, fixed_list, read_meta, write_parquet
 
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 KEYPOINTS = 17
 FEET = 4          # left heel, right heel, left toe, right toe (pipeline.pose.models.pose.FEET)
-WORLD = 33        # BlazePose body landmarks
 POSE2D_SCHEMA = pa.schema(
     [
         ("frame", pa.int32()),            # frame number on the segment clock (round(time * fps))
@@ -41,7 +41,6 @@ POSE2D_SCHEMA = pa.schema(
         ("keypoints", pa.list_(pa.float32(), KEYPOINTS * 3)),  # COCO-17 (x, y, score) flattened
         ("detected", pa.bool_()),         # False: box carried over from the previous keypoints
         ("feet", pa.list_(pa.float32(), FEET * 3)),        # heels and toes (x, y, score) flattened
-        ("world", pa.list_(pa.float32(), WORLD * 3)),      # world landmarks (x, y, z) in metres, or NaN
         ("interpolated", pa.bool_()),     # True: drawn between two keyframes, not posed by the models
     ]
 )
@@ -79,7 +78,6 @@ class Poses:
     keypoints: np.ndarray  # N x 17 x 3
     detected: np.ndarray   # N bool
     feet: np.ndarray       # N x 4 x 3 (score 0: no foot point)
-    world: np.ndarray      # N x 33 x 3 (NaN: none)
     interpolated: np.ndarray | None = None  # N bool (None: all False, every frame posed)
 
     def __len__(self) -> int:
@@ -95,7 +93,6 @@ class Poses:
             fixed_list(np.asarray(self.keypoints, np.float32).reshape(-1, KEYPOINTS * 3)),
             pa.array(np.asarray(self.detected, bool), pa.bool_()),
             fixed_list(np.asarray(self.feet, np.float32).reshape(-1, FEET * 3)),
-            fixed_list(np.asarray(self.world, np.float32).reshape(-1, WORLD * 3)),
             pa.array(self.interpolated_mask(), pa.bool_()),
         ], schema=POSE2D_SCHEMA)
 
@@ -112,7 +109,7 @@ class Poses:
                      box_score=column_array(table, "box_score"),
                      keypoints=column_array(table, "keypoints", (KEYPOINTS, 3)),
                      detected=column_array(table, "detected").astype(bool),
-                     feet=column_array(table, "feet", (FEET, 3)), world=column_array(table, "world", (WORLD, 3)),
+                     feet=column_array(table, "feet", (FEET, 3)),
                      interpolated=(column_array(table, "interpolated").astype(bool)
                                    if "interpolated" in table.column_names else None))
 

@@ -39,7 +39,6 @@ class SegmentTracks:
     keypoints: np.ndarray  # N x 17 x 3
     fingerprint: str
     feet: np.ndarray       # N x 4 x 3 (score 0: none)
-    world: np.ndarray      # N x 33 x 3 (NaN: none)
     drawn: np.ndarray      # N bool: drawn between two keyframes, not posed (pose2d's ``interpolated``)
 
     def of(self, track_id: int) -> np.ndarray:
@@ -85,5 +84,5 @@ def read_tracks(path: Path) -> SegmentTracks:
         height=segment.height, frame=poses.frame.astype(np.int64), time=np.asarray(poses.time, np.float64),
         track_id=column_array(table, "track_id").astype(np.int64), box=np.asarray(poses.box),
         keypoints=np.asarray(poses.keypoints), fingerprint=str(meta.get("fingerprint", "")),
-        feet=np.asarray(poses.feet), world=np.asarray(poses.world), drawn=poses.interpolated_mask(),
+        feet=np.asarray(poses.feet), drawn=poses.interpolated_mask(),
     )

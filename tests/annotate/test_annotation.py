@@ -37,7 +37,7 @@ def write_tracks(root: Path, seg_id: str, people: dict[int, list[int]], fps: flo
     frame = np.array([r[0] for r in rows])
     poses = Poses(frame=frame, time=frame / fps, person=np.zeros(n), box=np.array([r[2] for r in rows]),
                   box_score=np.full(n, 0.9), keypoints=np.array([r[3] for r in rows]).reshape(n, 17, 3),
-                  detected=np.ones(n, bool), feet=np.zeros((n, 4, 3)), world=np.full((n, 33, 3), np.nan))
+                  detected=np.ones(n, bool), feet=np.zeros((n, 4, 3)))
     path, pose2d = root / "data/tracks" / f"{seg_id}.parquet", root / "data/pose2d" / f"{seg_id}.parquet"
     frames_total = max(max(f) for f in people.values()) + 1
     segment = SegmentInfo(seg_id, fps, frames_total, 1280, 720)

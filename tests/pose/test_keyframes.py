@@ -25,8 +25,7 @@ def keyframe(frame: int, people: list[tuple[np.ndarray, np.ndarray]]) -> FramePo
     boxes = np.array([b for b, _ in people], np.float32).reshape(n, 4)
     kps = np.array([k for _, k in people], np.float32).reshape(n, 17, 3)
     feet = kps[:, :4].copy()
-    world = np.repeat(np.arange(33, dtype=np.float32)[None, :, None] * np.ones(3, np.float32), n, 0)
-    return FramePoses(frame, frame / 30, boxes, np.full(n, 0.8, np.float32), kps, True, feet, world)
+    return FramePoses(frame, frame / 30, boxes, np.full(n, 0.8, np.float32), kps, True, feet)
 
 
 @pytest.mark.parametrize(("source", "pose", "step"), [(24, 12, 2), (30, 12, 2), (60, 12, 5), (25, 8, 3),
@@ -59,7 +58,7 @@ def test_frames_between_two_keyframes_are_drawn_linearly_at_the_weaker_keyframes
     b = keyframe(3, [person(430, score=0.9), person(30, height=300), person(1000, height=150)])  # a third, smaller
     b.keypoints[1, 0, 2] = 0.1                                                        # the nose unsure at b
     got = list(in_between(a, b, [(1, 1 / 30), (2, 2 / 30)]))
-    assert [f.frame for f in got] == [1, 2] and all(f.interpolated and not f.detected for f in got)
+    assert [f.frame for f in got] == [1, 2] and all(np.all(f.interpolated) and not np.any(f.detected) for f in got)
     first, second = got
     assert len(first.scores) == 2 and len(second.scores) == 3     # the one seen only at b: held from b, nearer it
     assert np.array_equal(second.keypoints[2], b.keypoints[2])
@@ -69,7 +68,6 @@ def test_frames_between_two_keyframes_are_drawn_linearly_at_the_weaker_keyframes
     assert second.keypoints[0, 0, 2] == pytest.approx(0.1)          # as sure as the less sure keyframe
     assert np.allclose(second.keypoints[1, 1:, 2], 0.5)
     assert np.allclose(second.boxes[0], [20, 0, 170, 300])
-    assert np.allclose(second.world[:2], a.world)
     tail = list(held(b, [(4, 4 / 30)]))
     assert tail[0].frame == 4 and tail[0].interpolated and np.array_equal(tail[0].keypoints, b.keypoints)
 
@@ -152,3 +150,80 @@ def test_a_carried_box_frames_the_moved_keypoints_as_the_detector_framed_them() 
     plain = carried_boxes(moved[None], 1000, 1000, 0.2, 0.15)[0]
     assert np.allclose(plain, [150 - 0.15 * 16, 0, 166 + 0.15 * 16, 325 + 0.15 * 320], atol=1e-3)
 
+
+
+class _FrameNumberDetector:
+    """A detector that reads the frame number off the frame (its grey level is 64 + 8 k): one dancer always,
+    a second from frame ``arrives`` on."""
+
+    def __init__(self, arrives: int) -> None:
+        self.arrives = arrives
+
+    def preprocess(self, image: np.ndarray) -> np.ndarray:
+        return image
+
+    def infer(self, image: np.ndarray):
+        from pipeline.pose.models.detector import Detections
+
+        frame = int(round((float(image.mean()) - 64) / 8))
+        boxes = [[10 + frame, 10, 60 + frame, 110]] + ([[150, 20, 200, 120]] if frame >= self.arrives else [])
+        return Detections(np.array(boxes, np.float32), np.full(len(boxes), 0.9, np.float32))
+
+    def detect(self, image: np.ndarray):
+        return self.infer(image)
+
+
+class _CountingPose:
+    """A pose model that puts 17 confident joints down each box's middle and counts the boxes it posed."""
+
+    def __init__(self) -> None:
+        self.posed: list[tuple[int, float]] = []  # (frame, box x1)
+
+    def estimate(self, image: np.ndarray, boxes: np.ndarray):
+        from pipeline.pose.models.pose import PoseBatch
+
+        boxes = np.asarray(boxes, np.float32).reshape(-1, 4)
+        frame = int(round((float(image.mean()) - 64) / 8))
+        self.posed += [(frame, float(b[0])) for b in boxes]
+        kp = np.zeros((len(boxes), 17, 3), np.float32)
+        kp[:, :, 0] = (boxes[:, None, 0] + boxes[:, None, 2]) / 2
+        kp[:, :, 1] = boxes[:, None, 1] + (boxes[:, None, 3] - boxes[:, None, 1]) * np.linspace(0.05, 0.95, 17)
+        kp[:, :, 2] = 0.9
+        return PoseBatch.body_only(kp)
+
+
+def _numbered_clip(path: Path, frames: int) -> Path:
+    """A lossless clip whose frame k is grey level 64 + 8 k, too bright to be brightened (so a fake model can tell the frames apart)."""
+    import av
+
+    with av.open(str(path), "w") as out:
+        stream = out.add_stream("ffv1", rate=24)
+        stream.width, stream.height, stream.pix_fmt = 240, 160, "bgr0"
+        for k in range(frames):
+            picture = av.VideoFrame.from_ndarray(np.full((160, 240, 3), 64 + 8 * k, np.uint8), format="bgr24")
+            for packet in stream.encode(picture):
+                out.mux(packet)
+        for packet in stream.encode():
+            out.mux(packet)
+    return path
+
+
+def test_where_someone_comes_between_keyframes_only_they_are_posed_and_the_others_drawn(tmp_path: Path) -> None:
+    clip = _numbered_clip(tmp_path / "numbered.mkv", 10)
+    view = SegmentVideo(clip, 0.0, 24, 10, 240, 160)
+    detector, pose = _FrameNumberDetector(arrives=4), _CountingPose()
+    poses = collect_poses(estimate_segment(view, 24.0, detector, pose, Pose2dOptions(fps=8, changes_only=True)))[0]
+
+    # keyframes 0, 3, 6, 9; the newcomer is on 6 and not on 3, so frames 4 and 5 are looked at
+    assert sorted({f for f, _ in pose.posed}) == [0, 3, 4, 5, 6, 9]
+    assert [x for f, x in pose.posed if f in (4, 5)] == [150.0, 150.0]  # the newcomer alone
+    at = {(int(f), int(b[0])): bool(i) for f, b, i in zip(poses.frame, poses.box, poses.interpolated)}
+    assert at[(4, 150)] is False and at[(5, 150)] is False          # posed where first seen
+    assert at[(4, 14)] is True and at[(5, 15)] is True               # the first dancer drawn between 3 and 6
+    assert np.array_equal(np.bincount(poses.frame), [1, 1, 1, 1, 2, 2, 2, 2, 2, 2])
+    newcomer = poses.detected[(poses.frame == 4) & (poses.box[:, 0] == 150)]
+    assert newcomer.tolist() == [True]
+
+    everyone = _CountingPose()  # the default: such frames posed in full
+    collect_poses(estimate_segment(view, 24.0, detector, everyone, Pose2dOptions(fps=8)))
+    assert sorted(x for f, x in everyone.posed if f == 4) == [14.0, 150.0]

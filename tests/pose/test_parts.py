@@ -23,7 +23,7 @@ def fake_poses(frames: range, tag: float) -> Poses:
     n = len(frames)
     return Poses(frame=np.array(frames), time=np.array(frames) / 25.0, person=np.zeros(n, int),
                  box=np.full((n, 4), tag), box_score=np.ones(n), keypoints=np.full((n, 17, 3), tag),
-                 detected=np.ones(n, bool), feet=np.zeros((n, 4, 3)), world=np.zeros((n, 33, 3)),
+                 detected=np.ones(n, bool), feet=np.zeros((n, 4, 3)),
                  interpolated=np.zeros(n, bool))
 
 

@@ -139,7 +139,7 @@ def test_a_tracks_file_holds_only_the_ids_and_reads_back_joined_with_its_pose2d_
     rng = np.random.default_rng(0)
     poses = Poses(frame=frame, time=frame / 30.0, person=np.tile([0, 1], n // 2), box=rng.random((n, 4)) * 500,
                   box_score=np.full(n, 0.9), keypoints=rng.random((n, 17, 3)) * 500, detected=np.ones(n, bool),
-                  feet=rng.random((n, 4, 3)), world=rng.random((n, 33, 3)), interpolated=frame % 3 != 0)
+                  feet=rng.random((n, 4, 3)), interpolated=frame % 3 != 0)
     segment = SegmentInfo("seg", 30.0, n // 2, 640, 360)
     pose2d, tracks = tmp_path / "data/pose2d/seg.parquet", tmp_path / "data/tracks/seg.parquet"
     write_pose2d(pose2d, poses, segment, fingerprint="p1", params={}, inputs={})
@@ -149,7 +149,7 @@ def test_a_tracks_file_holds_only_the_ids_and_reads_back_joined_with_its_pose2d_
     back = read_tracks(tracks)
     assert back.ids == [1, 2] and back.fingerprint == "t1" and back.frames_total == n // 2
     np.testing.assert_allclose(back.keypoints, poses.keypoints, rtol=1e-6)
-    np.testing.assert_allclose(back.world, poses.world, rtol=1e-6)
+    np.testing.assert_allclose(back.feet, poses.feet, rtol=1e-6)
     assert np.array_equal(back.drawn, frame % 3 != 0)  # which rows were drawn between keyframes
     # A pose2d file written again after tracking is refused, not silently mis-numbered.
     write_pose2d(pose2d, poses, segment, fingerprint="p2", params={}, inputs={})
