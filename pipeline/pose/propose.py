@@ -365,7 +365,7 @@ def read_proposals(path: Path) -> dict:
 
     meta = read_meta(path)
     return {**{k: meta[k] for k in ("video_id", "duration", "cuts", "segments", "shots")},
-            "seconds": pq.read_table(path).to_pylist()}
+            "seconds": pq.ParquetFile(path).read().to_pylist()}  # one file: pq.read_table imports pandas
 
 
 def write_summary(folder: Path, files: list[Path]) -> Path:

@@ -17,7 +17,7 @@ HEAVY = ("scipy", "pandas", "cv2", "onnx", "onnxruntime", "torch", "matplotlib",
 NEEDED = {
     # The models' runtime is an input of every file they make, and which runtimes there are
     # (CUDA or not) is ONNX Runtime's to say.
-    "propose_segments": {"onnxruntime", "pandas"},  # + pandas: its summary is read back whole (propose.py)
+    "propose_segments": {"onnxruntime"},
     "pose2d": {"onnxruntime"},
     # The shipped model is copied and its figures, in its metadata, written again (DVC expects them).
     "train_lifter": {"onnxruntime"},
