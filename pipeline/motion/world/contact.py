@@ -6,7 +6,7 @@ holds each contact's foot where it landed, bending the leg with two-bone inverse
 (thigh and shin keep their lengths; the knee stays in its own bending plane), easing in and
 out over a few frames. With heels and toe tips (a lifter with feet) contact is judged at the
 foot's lower point, heel or toe, so a foot on its ball or its heel stands too (the corpus keeps
-the ankle rule: on lifted motion the feet rule scored no better, docs/pipeline/3d.md); the feet ride on
+the ankle rule: on lifted motion the feet rule scored no better, docs/reports/world.md); the feet ride on
 their ankles when legs are bent. Skating stays measured at the ankles (comparable either way).
 """
 
