@@ -60,12 +60,14 @@ def people_change(a: Any, b: Any, min_height: float = CHANGE_MIN_HEIGHT) -> bool
     return bool((lone >= min_height * tallest).any())
 
 
-def drawn_boxes(a: np.ndarray, b: np.ndarray, w: float) -> np.ndarray:
-    """(M x 4) the boxes of the people on both keyframes (boxes ``a`` and ``b``), drawn a fraction
-    ``w`` of the way from ``a`` to ``b``."""
+def drawn_boxes(a: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(F x M x 4) the boxes of the people on both keyframes (boxes ``a`` and ``b``), drawn each
+    fraction ``w`` (F) of the way from ``a`` to ``b``."""
     pairs = match_people(a, b)
     ia, ib = [i for i, _ in pairs], [j for _, j in pairs]
-    return (np.asarray(a, np.float64)[ia] * (1 - w) + np.asarray(b, np.float64)[ib] * w).reshape(-1, 4)
+    w = np.asarray(w, np.float64).reshape(-1, 1, 1)
+    start, end = np.asarray(a, np.float64)[ia].reshape(-1, 4), np.asarray(b, np.float64)[ib].reshape(-1, 4)
+    return start[None] * (1 - w) + end[None] * w
 
 
 def newcomers(found: np.ndarray, drawn: np.ndarray) -> np.ndarray:
@@ -116,14 +118,15 @@ def in_between(a: Any, b: Any, slots: list[tuple[int, float]], top_k: int = 0,
     for frame, time in slots:
         w = (frame - a.frame) / (b.frame - a.frame)
         alone, near = (only_a, a) if w <= 0.5 else (only_b, b)
+        held_over = True  # the lone people: held from the nearer keyframe ...
         if posed is not None and frame in posed:
-            near = posed[frame]  # the newcomers, as posed on this frame
+            near, held_over = posed[frame], False  # ... or the newcomers, as posed on this frame
             alone = np.arange(len(near.scores))
         boxes = np.concatenate([a.boxes[ia] * (1 - w) + b.boxes[ib] * w, near.boxes[alone]])
         scores = np.concatenate([np.minimum(a.scores[ia], b.scores[ib]), near.scores[alone]])
         keypoints = np.concatenate([lerp_points(a.keypoints[ia], b.keypoints[ib], w), near.keypoints[alone]])
         feet = np.concatenate([lerp_points(a.feet[ia], b.feet[ib], w), near.feet[alone]])
-        drawn = np.r_[np.ones(len(ia), bool), np.full(len(alone), near is a or near is b)]
+        drawn = np.r_[np.ones(len(ia), bool), np.full(len(alone), held_over)]
         area = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
         order = np.argsort(-area, kind="stable")[: top_k or None]
         yield dataclasses.replace(

@@ -330,7 +330,9 @@ def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opt
                 framing = box_framing(dets.boxes, batch.keypoints, opts.carry_min_score, opts.carry_margin)
             if waiting and previous is not None and opts.pose_changes and people_change(previous, dets):
                 if opts.changes_only:  # drawing the newcomers would guess; the others are drawn
-                    yield from (posed_newcomers(frame, previous, previous_number, dets, number) for frame in waiting)
+                    shares = [(frame.index - previous_number) / (number - previous_number) for frame in waiting]
+                    drawn = drawn_boxes(previous.boxes, dets.boxes, np.array(shares))
+                    yield from (posed_newcomers(frame, boxes) for frame, boxes in zip(waiting, drawn))
                 else:
                     yield from (posed_now(frame) for frame in waiting)
             else:
@@ -346,12 +348,11 @@ def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opt
         dets, batch = find_people(image, detector.detect(image), body_model, opts)
         return frame.index, frame.time, image, dets, batch, True
 
-    def posed_newcomers(frame: Frame, a: Detections, a_number: int, b: Detections, b_number: int) -> _Newcomers:
-        """A frame between keyframes ``a`` and ``b`` whose people differ: the people the detector finds
-        there who are none of those on both keyframes, posed as on a keyframe."""
+    def posed_newcomers(frame: Frame, drawn: np.ndarray) -> _Newcomers:
+        """A frame between two keyframes whose people differ: the people the detector finds there who
+        are none of those on both keyframes (their boxes ``drawn`` on this frame), posed as on a keyframe."""
         image = lift_dark(frame.shown(), opts.dark_mean)
         found = detector.detect(image)
-        drawn = drawn_boxes(a.boxes, b.boxes, (frame.index - a_number) / (b_number - a_number))
         new = newcomers(found.boxes, drawn)
         dets, batch = find_people(image, Detections(found.boxes[new], found.scores[new]), body_model, opts, drawn)
         return _Newcomers(frame.index, frame.time, image, dets, batch)
