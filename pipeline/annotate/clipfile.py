@@ -15,9 +15,8 @@ from typing import Any, Mapping
 
 import numpy as np
 import pyarrow as pa
-import pyarrow.parquet as pq
 
-from pipeline.core.storage import column_array, fixed_list, read_meta, write_parquet
+from pipeline.core.storage import column_array, fixed_list, read_file_table, read_meta, write_parquet
 from pipeline.pose.pose2dfile import FEET, KEYPOINTS, SegmentInfo
 
 SCHEMA_VERSION = 3  # 2: feet and world, carried from pose2d; 3: no world (two thirds of the file, never read)
@@ -84,7 +83,7 @@ def write_clean(path: Path, clips: list[Clip], segment: SegmentInfo, *, spans_fr
 
 
 def read_clean(path: Path) -> CleanFile:
-    table = pq.ParquetFile(path).read()  # one file, not a dataset: pq.read_table imports pandas (clean's metrics)
+    table = read_file_table(path)
     meta = read_meta(path)
     ids = np.array(table.column("clip_id").to_pylist())
     frame = column_array(table, "frame").astype(np.int64)

@@ -201,10 +201,15 @@ def read_meta(path: Path) -> dict[str, Any]:
     return json.loads(raw) if raw else {}
 
 
-def read_rows(path: Path) -> list[dict[str, Any]]:
-    """A small Parquet table's rows. Read as one file, not as a dataset: ``pq.read_table`` imports
+def read_file_table(path: Path) -> pa.Table:
+    """A Parquet file's table, read as one file, not as a dataset: ``pq.read_table`` imports
     pyarrow.dataset and with it pandas, 0.3 s at the start of a stage that may have nothing to do."""
-    return pq.ParquetFile(path).read().to_pylist()
+    return pq.ParquetFile(path).read()
+
+
+def read_rows(path: Path) -> list[dict[str, Any]]:
+    """A small Parquet table's rows (:func:`read_file_table`)."""
+    return read_file_table(path).to_pylist()
 
 
 def require_schema(path: Path, version: int, what: str, fix: str) -> dict[str, Any]:

@@ -359,13 +359,10 @@ def write_proposals(path: Path, video_id: str, tl: Timeline, found: Proposals, o
 
 def read_proposals(path: Path) -> dict:
     """The metadata of a proposals file: video_id, duration, cuts, segments, shots (and the per-second table)."""
-    import pyarrow.parquet as pq
-
-    from pipeline.core.storage import read_meta
+    from pipeline.core.storage import read_meta, read_rows
 
     meta = read_meta(path)
-    return {**{k: meta[k] for k in ("video_id", "duration", "cuts", "segments", "shots")},
-            "seconds": pq.ParquetFile(path).read().to_pylist()}  # one file: pq.read_table imports pandas
+    return {**{k: meta[k] for k in ("video_id", "duration", "cuts", "segments", "shots")}, "seconds": read_rows(path)}
 
 
 def write_summary(folder: Path, files: list[Path]) -> Path:
