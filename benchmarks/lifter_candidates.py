@@ -23,6 +23,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+from benchmarks.lifter_training import optimiser_step_times
 from pipeline.core.params import load_params, stage_params, with_profile
 from pipeline.core.storage import write_json
 from pipeline.motion.lifting.evaluate import format_report, held_out_later, split
@@ -35,24 +36,11 @@ ARCHITECTURES = {"rf81": {"filter_widths": (3, 3, 3, 3), "channels": 256},
 def seconds_per_step(cfg, train, steps: int) -> float:
     """The median time between optimiser steps over the last half of ``steps`` steps (the first
     half warms up)."""
-    import torch
-
     from pipeline.motion.lifting import train as training
 
-    stamps: list[float] = []
-    original = torch.optim.Adam.step
-
-    def timed(self, *a, **k):
-        out = original(self, *a, **k)
-        stamps.append(time.monotonic())
-        return out
-
-    torch.optim.Adam.step = timed
-    try:
+    with optimiser_step_times() as stamps:
         training.train_lifter(replace(cfg, steps=steps), train, [], stop_after=steps, evaluate_after=False,
                               progress=False)
-    finally:
-        torch.optim.Adam.step = original
     half = stamps[len(stamps) // 2:]
     gaps = sorted(b - a for a, b in zip(half, half[1:]))
     return gaps[len(gaps) // 2]

@@ -20,7 +20,9 @@ import platform
 import resource
 import tempfile
 import time
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 
@@ -28,6 +30,26 @@ from pipeline.core.params import load_params, stage_params, with_profile
 from pipeline.core.storage import write_json
 from pipeline.motion.lifting.evaluate import split
 from stages.train_lifter import config_from_params
+
+
+@contextmanager
+def optimiser_step_times() -> Iterator[list[float]]:
+    """The monotonic time of every optimiser (Adam) step taken inside the block."""
+    import torch
+
+    stamps: list[float] = []
+    original = torch.optim.Adam.step
+
+    def timed_step(self, *a, **k):
+        out = original(self, *a, **k)
+        stamps.append(time.monotonic())
+        return out
+
+    torch.optim.Adam.step = timed_step
+    try:
+        yield stamps
+    finally:
+        torch.optim.Adam.step = original
 
 
 def main() -> None:
@@ -39,8 +61,6 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/lifter_training.json"))
     args = parser.parse_args()
 
-    import torch
-
     from pipeline.motion.lifting import train as training
 
     section = stage_params(load_params("params.yaml"), "train_lifter")
@@ -50,23 +70,13 @@ def main() -> None:
     train, _ = split(training.load_mocap(args.mocap, cfg), cfg.holdout)
     load_seconds = time.monotonic() - started
 
-    stamps: list[float] = []
-    original = torch.optim.Adam.step
-
-    def timed_step(self, *a, **k):  # a time stamp per optimiser step
-        out = original(self, *a, **k)
-        stamps.append(time.monotonic())
-        return out
-
-    torch.optim.Adam.step = timed_step
-    with tempfile.TemporaryDirectory() as folder:
+    with tempfile.TemporaryDirectory() as folder, optimiser_step_times() as stamps:
         checkpoint = Path(folder) / "lifter.pt"
         begun = time.monotonic()
         training.train_lifter(cfg, train, [], checkpoint=checkpoint, stop_after=args.steps, evaluate_after=False,
                               progress=False)
         total = time.monotonic() - begun
         size = checkpoint.stat().st_size
-    torch.optim.Adam.step = original
     blocks = [stamps[k + 50] - stamps[k] for k in range(0, len(stamps) - 50, 50)]
     per_1000 = 20 * float(np.median(blocks)) if blocks else 1000 * total / args.steps
     result = {"profile": args.profile, "steps_timed": args.steps, "threads": args.threads,
