@@ -29,11 +29,9 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.core.errors import InputError
-from pipeline.pose.hands import HAND_JOINTS, SIDES, Hand, HandLandmarks, region_from_box, region_from_forearm
+from pipeline.pose.hands import HAND_JOINTS, SIDES, Hand, HandLandmarks, body_hands, region_from_box
 
 PCK_SHARE = 0.2
-COCO_ELBOW_WRIST = {"left": (7, 9), "right": (8, 10)}
-MIN_WRIST_SCORE = 0.3
 
 
 def read_hand_annotations(path: Path) -> list[dict]:
@@ -61,9 +59,9 @@ def read_hand_annotations(path: Path) -> list[dict]:
     return data["images"]
 
 
-def body_hands(image: np.ndarray, detector, pose, opts, landmarks: HandLandmarks) -> list[tuple[str, Hand]]:
-    """(side, hand) beyond every confident wrist of every person the pose2d rules find; with no person,
-    the hand the whole image holds (a crop around one hand)."""
+def people_hands(image: np.ndarray, detector, pose, opts, landmarks: HandLandmarks) -> list[tuple[str, Hand]]:
+    """(side, hand) of every person the pose2d rules find, as pose2d finds them (``hands.body_hands``);
+    with no person, the hand the whole image holds (a crop around one hand)."""
     from dataclasses import replace
 
     from pipeline.pose.pose2d import find_people
@@ -73,15 +71,8 @@ def body_hands(image: np.ndarray, detector, pose, opts, landmarks: HandLandmarks
         height, width = image.shape[:2]
         hand = landmarks.estimate(image, region_from_box(np.array([0, 0, width, height]), landmarks.size, 1.0))
         return [("right" if hand.right >= 0.5 else "left", hand)]
-    found = []
-    for keypoints in batch.keypoints:
-        for side, (elbow, wrist) in COCO_ELBOW_WRIST.items():
-            if min(keypoints[elbow, 2], keypoints[wrist, 2]) < MIN_WRIST_SCORE:
-                continue
-            region = region_from_forearm(keypoints[elbow], keypoints[wrist], landmarks.size)
-            if region is not None:
-                found.append((side, landmarks.estimate(image, region)))
-    return found
+    return [(side, hand) for pair in body_hands(landmarks, image, batch.keypoints)
+            for side, hand in zip(SIDES, pair) if hand is not None]
 
 
 def palm_hands(image: np.ndarray, palms, landmarks: HandLandmarks) -> list[tuple[str, Hand]]:
@@ -193,10 +184,10 @@ def evaluate_hands(annotations: Path, images: Path, landmarks: HandLandmarks, *,
         elif regions == "palm":
             matched = _match(truth, palm_hands(image, palms, landmarks))
         elif regions == "body+palm":
-            matched = _match(truth, fused_hands(body_hands(image, *body, opts, landmarks),
+            matched = _match(truth, fused_hands(people_hands(image, *body, opts, landmarks),
                                                 palm_hands(image, palms, landmarks)))
         else:
-            matched = _match(truth, body_hands(image, *body, opts, landmarks))
+            matched = _match(truth, people_hands(image, *body, opts, landmarks))
         rows.setdefault(entry.get("dataset", ""), []).extend(
             _score(h, m, min_presence) for h, m in zip(truth, matched))
     result = {"regions": regions, "pck_share": PCK_SHARE, "min_presence": min_presence,

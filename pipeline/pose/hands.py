@@ -6,6 +6,10 @@ beyond the wrist along it, about half a forearm long). A second pass takes Media
 region from the first pass's landmarks: wrist -> middle finger's knuckle pointing up, twice the
 hand's extent. Joints are in MediaPipe's order (``HAND_JOINTS``), which is also FreiHAND's,
 InterHand's and COCO-WholeBody's.
+
+``body_hands`` is how pose2d (``pose2d.hands``) and ``eval hands`` find a posed person's hands: a
+region beyond each confident wrist, none where the wrist is unsure, the region mostly out of the
+picture or too small for the model; ``hands_array`` packs them into the pose2d file's layout.
 """
 
 from __future__ import annotations
@@ -24,6 +28,11 @@ SIDES = ("left", "right")
 # an adult hand is about 0.7 of a forearm from wrist to fingertip.
 CENTRE_BEYOND_WRIST = 0.35
 SIDE_PER_FOREARM = 1.3
+COCO_ELBOW_WRIST = ((7, 9), (8, 10))  # (elbow, wrist) of the left, then the right arm
+MIN_WRIST_SCORE = 0.3
+# A region under this side (pixels) holds a hand under about 10 px: the model sees a blur there
+# (hand_eval's 13-31 px hands of whole people: presence under 0.5 on 11 of 13, docs/reports/hands.md).
+MIN_REGION_PX = 20.0
 
 
 @dataclass(frozen=True)
@@ -102,3 +111,37 @@ def region_from_landmarks(points: np.ndarray, size: int = 224, scale: float = 2.
     centre = ((along.min() + along.max()) / 2) * up + ((side.min() + side.max()) / 2) * across
     half = max(np.ptp(along), np.ptp(side)) / 2
     return roi_transform(centre, centre + up * max(half, 0.5), size, scale)
+
+
+def body_hands(landmarks: HandLandmarks, image: np.ndarray, keypoints: np.ndarray, passes: int = 2,
+               min_wrist_score: float = MIN_WRIST_SCORE) -> list[tuple[Hand | None, Hand | None]]:
+    """Each posed person's (left, right) hand, from COCO-17 ``keypoints`` (N x 17 x 3): the hand model
+    in the region beyond each wrist along its forearm; None (not looked at) where the elbow or wrist
+    is under ``min_wrist_score``, the region is under ``MIN_REGION_PX`` or its centre is off the picture."""
+    height, width = image.shape[:2]
+    found = []
+    for person in np.asarray(keypoints, np.float64).reshape(-1, 17, 3):
+        pair = []
+        for elbow, wrist in COCO_ELBOW_WRIST:
+            region = None
+            if min(person[elbow, 2], person[wrist, 2]) >= min_wrist_score:
+                forearm = person[wrist, :2] - person[elbow, :2]
+                centre = person[wrist, :2] + CENTRE_BEYOND_WRIST * forearm
+                on_picture = 0 <= centre[0] < width and 0 <= centre[1] < height
+                if on_picture and SIDE_PER_FOREARM * np.hypot(*forearm) >= MIN_REGION_PX:
+                    region = region_from_forearm(person[elbow], person[wrist], landmarks.size)
+            pair.append(landmarks.estimate(image, region, passes) if region is not None else None)
+        found.append((pair[0], pair[1]))
+    return found
+
+
+def hands_array(hands: list[tuple[Hand | None, Hand | None]]) -> tuple[np.ndarray, np.ndarray]:
+    """(N x 2 x 21 x 3 points: x, y in pixels and the hand's presence as every joint's score;
+    N x 2 x 21 x 3 metres about the hand), left then right; zeros where no hand was looked at."""
+    points = np.zeros((len(hands), 2, 21, 3), np.float32)
+    world = np.zeros((len(hands), 2, 21, 3), np.float32)
+    for i, pair in enumerate(hands):
+        for side, hand in enumerate(pair):
+            if hand is not None:
+                points[i, side], world[i, side] = hand.keypoints, hand.world
+    return points, world

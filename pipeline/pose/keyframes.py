@@ -129,11 +129,16 @@ def in_between(a: Any, b: Any, slots: list[tuple[int, float]], top_k: int = 0,
         drawn = np.r_[np.ones(len(ia), bool), np.full(len(alone), held_over)]
         area = (boxes[:, 2] - boxes[:, 0]) * (boxes[:, 3] - boxes[:, 1])
         order = np.argsort(-area, kind="stable")[: top_k or None]
+        hands = {}
+        if getattr(a, "hands", None) is not None:  # a hand's points drawn as the body's, its metric shape too
+            points = np.concatenate([lerp_points(a.hands[ia], b.hands[ib], w), near.hands[alone]])
+            world = np.concatenate([a.hands_world[ia] * (1 - w) + b.hands_world[ib] * w, near.hands_world[alone]])
+            hands = {"hands": points[order].astype(np.float32), "hands_world": world[order].astype(np.float32)}
         yield dataclasses.replace(
             a, frame=frame, time=time, boxes=boxes[order].astype(np.float32),
             scores=scores[order].astype(np.float32), keypoints=keypoints[order].astype(np.float32),
             feet=feet[order].astype(np.float32),
-            detected=~drawn[order], interpolated=drawn[order])
+            detected=~drawn[order], interpolated=drawn[order], **hands)
 
 
 def held(a: Any, slots: list[tuple[int, float]]) -> Iterator[Any]:

@@ -31,10 +31,11 @@ import numpy as np
 from pipeline.core.threads import threaded
 from pipeline.ingest.media import Frame
 from pipeline.ingest.segmentvideo import SegmentVideo, frames_of
+from pipeline.pose.hands import HandLandmarks, body_hands, hands_array
 from pipeline.pose.keyframes import drawn_boxes, held, in_between, keyframe_step, newcomers, people_change
 from pipeline.pose.models.detector import Detections, FusedDetector, PicoDetDetector, RTMDetDetector, largest
 from pipeline.pose.models.pose import BlazePose, BodyAndFeet, MoveNetPose, PoseBatch, RTMPose, TinyPose
-from pipeline.pose.pose2dfile import FEET, Poses, SegmentInfo, write_pose2d
+from pipeline.pose.pose2dfile import FEET, HAND_POINTS, Poses, SegmentInfo, write_pose2d
 from pipeline.pose.tracking import iou_matrix
 
 
@@ -63,12 +64,14 @@ class Pose2dOptions:
     confirm_min_share: float = 0.0    # ... and at least this share of the tallest sure person's height (0: any)
     min_joints: int = 0            # even a sure box needs this many joints at confirm_joint_score (0: none)
     dark_mean: float = 40.0        # frames darker than this mean pixel value are brightened (0: never)
+    hands: bool = False            # 21 points per hand of every posed person (hands.body_hands)
+    hand_passes: int = 2           # the hand model's passes: the forearm's region, then the hand's own
 
     @staticmethod
     def from_params(params: dict) -> "Pose2dOptions":
         names = ("top_k", "fps", "det_every", "det_score", "confirm_score", "confirm_joints", "confirm_joint_score",
                  "confirm_min_height", "confirm_min_share", "min_joints", "dark_mean", "redetect_overlap",
-                 "redetect_joints", "carry_framed", "pose_changes", "changes_only")
+                 "redetect_joints", "carry_framed", "pose_changes", "changes_only", "hands", "hand_passes")
         fields = {f: type(getattr(Pose2dOptions, f)) for f in names}
         return Pose2dOptions(**{f: kind(params[f]) for f, kind in fields.items() if f in params})
 
@@ -203,6 +206,8 @@ class FramePoses:
     feet: np.ndarray       # Nx4x3
     interpolated: bool | np.ndarray = False  # (per person, or for all) drawn between two keyframes
                                              # (keyframes.in_between), not posed
+    hands: np.ndarray | None = None        # Nx2x21x3 left and right hand (hands.hands_array); None: not asked
+    hands_world: np.ndarray | None = None  # Nx2x21x3 metres about each hand
 
 
 @dataclass(frozen=True)
@@ -254,9 +259,10 @@ def carried_boxes(keypoints: np.ndarray, width: int, height: int, min_score: flo
 
 
 def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opts: Pose2dOptions,
-                     span: tuple[int, int] | None = None) -> Iterator[FramePoses]:
+                     span: tuple[int, int] | None = None, hands: HandLandmarks | None = None) -> Iterator[FramePoses]:
     """Yield the poses of every frame of ``video`` (a segment view or a video file), in order;
-    ``span``: only a segment view's frames first to end - 1 (a part, ``parts.plan_parts``).
+    ``span``: only a segment view's frames first to end - 1 (a part, ``parts.plan_parts``); with
+    ``hands`` (the hand model), every posed person's hands too.
 
     The models pose every ``keyframe_step``-th frame (and a segment's or a part's last); the frames
     between are decoded but not converted, and come out interpolated once the next keyframe is
@@ -357,6 +363,12 @@ def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opt
         dets, batch = find_people(image, Detections(found.boxes[new], found.scores[new]), body_model, opts, drawn)
         return _Newcomers(frame.index, frame.time, image, dets, batch)
 
+    def with_hands(posed: FramePoses, image: np.ndarray) -> FramePoses:
+        if hands is None:
+            return posed
+        points, world = hands_array(body_hands(hands, image, posed.keypoints, opts.hand_passes))
+        return dataclasses.replace(posed, hands=points, hands_world=world)
+
     try:
         q = opts.queue_size
         stream = threaded(people(threaded(detected(threaded(decoded(), q, stop)), q, stop)), q, stop)
@@ -369,13 +381,14 @@ def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opt
                 continue
             if isinstance(item, _Newcomers):
                 batch = feet_model.complete(item.image, item.dets.boxes, item.batch) if feet_model else item.batch
-                newcomers_on[item.frame] = _frame_poses(item.frame, item.time, item.dets, batch, True)
+                newcomers_on[item.frame] = with_hands(_frame_poses(item.frame, item.time, item.dets, batch, True),
+                                                      item.image)
                 between.append(Frame(item.frame, item.time, None))
                 continue
             number, time, image, dets, batch, was_detected = item
             if feet_model is not None:
                 batch = feet_model.complete(image, dets.boxes, batch)
-            current = _frame_poses(number, time, dets, batch, was_detected)
+            current = with_hands(_frame_poses(number, time, dets, batch, was_detected), image)
             if between and keyframe is not None:
                 yield from in_between(keyframe, current, [(f.index, f.time) for f in between], opts.top_k,
                                       newcomers_on)
@@ -426,7 +439,7 @@ def _carry(previous: Detections | None, keypoints: np.ndarray, framing: np.ndarr
 def collect_poses(frames: Iterator[FramePoses], progress: Callable[[], None] | None = None) -> tuple[Poses, int]:
     """Collect per-person rows of every frame; returns them and the number of frames seen."""
     rows: dict[str, list] = {k: [] for k in ("frame", "time", "person", "box", "box_score", "keypoints", "detected",
-                                             "feet", "interpolated")}
+                                             "feet", "interpolated", "hands", "hands_world")}
     seen = 0
     for fp in frames:
         seen += 1
@@ -440,10 +453,18 @@ def collect_poses(frames: Iterator[FramePoses], progress: Callable[[], None] | N
         rows["detected"].append(np.broadcast_to(np.asarray(fp.detected, bool), (n,)))
         rows["feet"].append(np.asarray(fp.feet, np.float32).reshape(n, FEET, 3))
         rows["interpolated"].append(np.broadcast_to(np.asarray(fp.interpolated, bool), (n,)))
+        if fp.hands is not None:
+            rows["hands"].append(np.asarray(fp.hands, np.float32).reshape(n, 2, HAND_POINTS, 3))
+            rows["hands_world"].append(np.asarray(fp.hands_world, np.float32).reshape(n, 2, HAND_POINTS, 3))
         if progress:
             progress()
     empty = {"box": (0, 4), "keypoints": (0, 17, 3), "feet": (0, FEET, 3)}
+    hands = rows.pop("hands"), rows.pop("hands_world")
     cat = {k: np.concatenate(v) if v else np.zeros(empty.get(k, (0,))) for k, v in rows.items()}
+    if hands[0] and len(hands[0]) != seen:
+        raise ValueError("hands on some frames but not on others")
+    if hands[0]:
+        cat.update(hands=np.concatenate(hands[0]), hands_world=np.concatenate(hands[1]))
     return Poses(**cat), seen
 
 
@@ -453,6 +474,7 @@ def collect_poses(frames: Iterator[FramePoses], progress: Callable[[], None] | N
 class PoseModels:
     detector: RTMDetDetector | PicoDetDetector | FusedDetector
     pose: MoveNetPose | RTMPose | TinyPose | BlazePose | BodyAndFeet
+    hands: HandLandmarks | None = None  # the hand model (pose2d.hands)
 
 
 @dataclass(frozen=True)
@@ -468,8 +490,10 @@ class Pose2dJob:
 
 
 def pose_segment(models: PoseModels, job: Pose2dJob) -> dict:
+    if job.opts.hands and models.hands is None:
+        raise ValueError("pose2d.hands is on but no hand model was loaded")
     poses, frames = collect_poses(estimate_segment(job.video, job.segment.fps, models.detector, models.pose,
-                                                   job.opts, job.span))
+                                                   job.opts, job.span, models.hands if job.opts.hands else None))
     segment = SegmentInfo(job.segment.segment_id, job.segment.fps, frames, job.segment.width, job.segment.height)
     write_pose2d(job.out, poses, segment, fingerprint=job.fingerprint, params=job.params, inputs=job.inputs)
     return {"frames": frames, "detections": len(poses), "frames_with_people": len(np.unique(poses.frame))}

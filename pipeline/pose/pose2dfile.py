@@ -13,7 +13,11 @@ sha256.
 Version 2 added ``feet`` and ``world``; version-1 files are redone (their fingerprint
 no longer matches). Version 3 added ``interpolated`` (read as all False from version 2).
 Version 4 dropped ``world`` (BlazePose's 33 metric landmarks): two thirds of every file's bytes,
-and nothing after pose2d read them.
+and nothing after pose2d read them. Version 5 added the hands, two optional columns written only
+when ``pose2d.hands`` is on: ``hands`` (left then right hand, 21 MediaPipe hand points each as x, y
+and the hand's presence, 0 where the hand was not looked at: wrist unsure, hand too small or off
+the picture, :func:`pipeline.pose.hands.body_hands`) and ``hands_world`` (the same points in metres
+about the hand, as the hand model gives them, turned to the image's orientation).
 """
 
 from __future__ import annotations
@@ -28,9 +32,10 @@ import pyarrow.parquet as pq
 
 from pipeline.core.storage import column_array, fixed_list, read_meta, write_parquet
 
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 KEYPOINTS = 17
 FEET = 4          # left heel, right heel, left toe, right toe (pipeline.pose.models.pose.FEET)
+HAND_POINTS = 21  # per hand, MediaPipe's order (pipeline.pose.hands.HAND_JOINTS)
 POSE2D_SCHEMA = pa.schema(
     [
         ("frame", pa.int32()),            # frame number on the segment clock (round(time * fps))
@@ -44,6 +49,10 @@ POSE2D_SCHEMA = pa.schema(
         ("interpolated", pa.bool_()),     # True: drawn between two keyframes, not posed by the models
     ]
 )
+HANDS_FIELDS = [
+    pa.field("hands", pa.list_(pa.float32(), 2 * HAND_POINTS * 3)),        # left, right: (x, y, presence) x 21
+    pa.field("hands_world", pa.list_(pa.float32(), 2 * HAND_POINTS * 3)),  # the same in metres about the hand
+]
 
 
 @dataclass(frozen=True)
@@ -79,12 +88,14 @@ class Poses:
     detected: np.ndarray   # N bool
     feet: np.ndarray       # N x 4 x 3 (score 0: no foot point)
     interpolated: np.ndarray | None = None  # N bool (None: all False, every frame posed)
+    hands: np.ndarray | None = None         # N x 2 x 21 x 3 (None: hands were not asked for)
+    hands_world: np.ndarray | None = None   # N x 2 x 21 x 3 metres
 
     def __len__(self) -> int:
         return len(self.frame)
 
     def table(self) -> pa.Table:
-        return pa.Table.from_arrays([
+        table = pa.Table.from_arrays([
             pa.array(np.asarray(self.frame, np.int32), pa.int32()),
             pa.array(np.asarray(self.time, np.float64), pa.float64()),
             pa.array(np.asarray(self.person, np.int8), pa.int8()),
@@ -95,6 +106,12 @@ class Poses:
             fixed_list(np.asarray(self.feet, np.float32).reshape(-1, FEET * 3)),
             pa.array(self.interpolated_mask(), pa.bool_()),
         ], schema=POSE2D_SCHEMA)
+        if self.hands is None:
+            return table
+        for field, values in zip(HANDS_FIELDS, (self.hands, self.hands_world)):
+            flat = np.asarray(values, np.float32).reshape(-1, 2 * HAND_POINTS * 3)
+            table = table.append_column(field, fixed_list(flat))
+        return table
 
     def interpolated_mask(self) -> np.ndarray:
         """N bool: True where the row is interpolated (all False when the models posed every frame)."""
@@ -111,7 +128,11 @@ class Poses:
                      detected=column_array(table, "detected").astype(bool),
                      feet=column_array(table, "feet", (FEET, 3)),
                      interpolated=(column_array(table, "interpolated").astype(bool)
-                                   if "interpolated" in table.column_names else None))
+                                   if "interpolated" in table.column_names else None),
+                     hands=(column_array(table, "hands", (2, HAND_POINTS, 3))
+                            if "hands" in table.column_names else None),
+                     hands_world=(column_array(table, "hands_world", (2, HAND_POINTS, 3))
+                                  if "hands_world" in table.column_names else None))
 
 
 @dataclass(frozen=True)

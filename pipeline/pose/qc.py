@@ -31,6 +31,10 @@ SKELETON = ((15, 13), (13, 11), (16, 14), (14, 12), (11, 12), (5, 11), (6, 12), 
 # Feet, when the pose data has them: keypoints 17-20 = left heel, right heel, left toe, right toe.
 FOOT_BONES = ((15, 17), (15, 19), (17, 19), (16, 18), (16, 20), (18, 20))
 UNTRACKED_COLOUR = (160, 160, 160)
+# A hand's 21 points (MediaPipe's order): each finger from the wrist, and across the knuckles.
+HAND_BONES = tuple((0 if k == 0 else 1 + 4 * f + k - 1, 1 + 4 * f + k) for f in range(5) for k in range(4)) + (
+    (5, 9), (9, 13), (13, 17))
+MIN_HAND_PRESENCE = 0.5  # the hand model's own threshold: an unsurer hand is not drawn
 
 
 def id_colour(track_id: int) -> tuple[int, int, int]:
@@ -44,13 +48,20 @@ def id_colour(track_id: int) -> tuple[int, int, int]:
 
 def draw_frame(image: np.ndarray, frame: int, time: float, people: list[tuple], kp_min_score: float,
                drawn: bool = False) -> np.ndarray:
-    """Draw ``people`` = [(track_id, box[4], keypoints[17x3] or [21x3] with the feet), ...] and the
-    banner (``drawn``: the poses were drawn between two keyframes, not posed by the models)."""
+    """Draw ``people`` = [(track_id, box[4], keypoints[17x3] or [21x3] with the feet[, hands[2x21x3]]), ...]
+    and the banner (``drawn``: the poses were drawn between two keyframes, not posed by the models)."""
     h, w = image.shape[:2]
     unit = max(h, w) / 720.0
     thick = max(1, int(round(2 * unit)))
-    for track_id, box, kps in people:
+    for track_id, box, kps, *hands in people:
         colour = id_colour(track_id)
+        for hand in hands[0] if hands else ():
+            if hand[0, 2] >= MIN_HAND_PRESENCE:  # thin bones in the person's colour, white joints
+                for a, b in HAND_BONES:
+                    cv2.line(image, (int(hand[a, 0]), int(hand[a, 1])), (int(hand[b, 0]), int(hand[b, 1])), colour,
+                             max(1, thick // 2), cv2.LINE_AA)
+                for x, y, _ in hand:
+                    cv2.circle(image, (int(x), int(y)), max(1, thick // 2), (255, 255, 255), -1, cv2.LINE_AA)
         x1, y1, x2, y2 = (int(round(v)) for v in box)
         cv2.rectangle(image, (x1, y1), (x2, y2), colour, thick if track_id >= 0 else 1, cv2.LINE_AA)
         for a, b in SKELETON + (FOOT_BONES if len(kps) > 17 else ()):
@@ -78,15 +89,16 @@ def draw_frame(image: np.ndarray, frame: int, time: float, people: list[tuple], 
 def render_qc(segment: SegmentVideo, fps: float, frames: np.ndarray, track_ids: np.ndarray, boxes: np.ndarray,
               keypoints: np.ndarray, out: Path, *, kp_min_score: float = 0.2,
               crf: int = 23, preset: str = "veryfast", feet: np.ndarray | None = None,
-              drawn: np.ndarray | None = None) -> None:
+              drawn: np.ndarray | None = None, hands: np.ndarray | None = None) -> None:
     """Write the QC video of ``segment`` with the given detections (one row per person per frame;
-    ``drawn``: which rows were drawn between keyframes)."""
+    ``drawn``: which rows were drawn between keyframes; ``hands``: N x 2 x 21 x 3, drawn where sure)."""
     by_frame: dict[int, list[tuple]] = defaultdict(list)
     for i in range(len(frames)):
         kps = keypoints[i].reshape(17, 3)
         if feet is not None:
             kps = np.vstack([kps, feet[i].reshape(4, 3)])
-        by_frame[int(frames[i])].append((int(track_ids[i]), boxes[i], kps))
+        person = (int(track_ids[i]), boxes[i], kps)
+        by_frame[int(frames[i])].append(person if hands is None else (*person, hands[i]))
     drawn_frames = set(np.asarray(frames)[np.asarray(drawn, bool)].tolist()) if drawn is not None else set()
     stream = segment.iter_frames()
     first = next(stream, None)
@@ -142,5 +154,6 @@ def qc_video(root: Path, segment_id: str, *, kp_min_score: float = 0.2) -> Path:
         raise MediaError(Path(root) / SEGMENTS, f"segment {segment_id} is not in the index")
     tracks = read_tracks(tracks_file)
     render_qc(SegmentVideo.from_index(Path(root) / RAW, row), tracks.fps, tracks.frame, tracks.track_id, tracks.box,
-              tracks.keypoints, out, kp_min_score=kp_min_score, feet=tracks.feet, drawn=tracks.drawn)
+              tracks.keypoints, out, kp_min_score=kp_min_score, feet=tracks.feet, drawn=tracks.drawn,
+              hands=tracks.hands)
     return out

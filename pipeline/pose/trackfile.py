@@ -40,6 +40,7 @@ class SegmentTracks:
     fingerprint: str
     feet: np.ndarray       # N x 4 x 3 (score 0: none)
     drawn: np.ndarray      # N bool: drawn between two keyframes, not posed (pose2d's ``interpolated``)
+    hands: np.ndarray | None = None  # N x 2 x 21 x 3 (pose2d's ``hands``; None: not asked for)
 
     def of(self, track_id: int) -> np.ndarray:
         """Row indices of one track, in frame order."""
@@ -84,5 +85,5 @@ def read_tracks(path: Path) -> SegmentTracks:
         height=segment.height, frame=poses.frame.astype(np.int64), time=np.asarray(poses.time, np.float64),
         track_id=column_array(table, "track_id").astype(np.int64), box=np.asarray(poses.box),
         keypoints=np.asarray(poses.keypoints), fingerprint=str(meta.get("fingerprint", "")),
-        feet=np.asarray(poses.feet), drawn=poses.interpolated_mask(),
+        feet=np.asarray(poses.feet), drawn=poses.interpolated_mask(), hands=poses.hands,
     )

@@ -213,6 +213,7 @@ def track_segment(job: TrackJob) -> dict:
                  inputs={"pose2d": pose2d.fingerprint})
     if job.qc_out is not None:
         render_qc(job.video, pose2d.segment.fps, poses.frame, ids, poses.box, poses.keypoints, job.qc_out,
-                  kp_min_score=job.opts.kp_min_score, feet=poses.feet, drawn=poses.interpolated_mask())
+                  kp_min_score=job.opts.kp_min_score, feet=poses.feet, drawn=poses.interpolated_mask(),
+                  hands=poses.hands)
     real = ids[ids >= 0]
     return {"tracks": int(len(np.unique(real))), "untracked": int((ids < 0).sum())}

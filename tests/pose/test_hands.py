@@ -123,3 +123,147 @@ def test_mediapipes_own_pipeline_runs_as_the_peer(hand_model: Path, palm_model: 
     assert result["datasets"]["freihand"]["found"] == 4 and result["datasets"]["freihand"]["pck"] >= 0.8
     whole_people = [result["datasets"][name]["found"] for name in ("coco_wholebody", "halpe")]
     assert whole_people == [0, 0]  # its palm detector sees none of the small hands of whole people
+
+
+# --- hands in pose2d (pose2d.hands) ---------------------------------------------------------
+
+class _FakeLandmarks:
+    """Records where it was asked to look; finds a hand of presence 0.9 with its wrist at the region's centre."""
+
+    size = 224
+
+    def __init__(self) -> None:
+        self.regions: list[np.ndarray] = []
+
+    def estimate(self, image: np.ndarray, region: np.ndarray, passes: int = 2):
+        from pipeline.pose.hands import Hand
+
+        self.regions.append(region)
+        centre = to_image(np.array([[SIZE / 2, SIZE / 2]]), region)[0]
+        points = np.column_stack([np.tile(centre, (21, 1)), np.full(21, 0.9)]).astype(np.float32)
+        return Hand(points, np.ones((21, 3), np.float32), 0.9, 0.5, region)
+
+
+def _body(left_wrist_score: float = 0.9, right_forearm: float = 100.0, right_wrist_x: float = 300.0) -> np.ndarray:
+    kp = np.zeros((1, 17, 3), np.float32)
+    kp[0, 7] = [200, 200, 0.9]                       # left elbow, the wrist 100 px below it
+    kp[0, 9] = [200, 300, left_wrist_score]
+    kp[0, 8] = [right_wrist_x, 300 - right_forearm, 0.9]  # right elbow, the wrist ``right_forearm`` below
+    kp[0, 10] = [right_wrist_x, 300, 0.9]
+    return kp
+
+
+def test_a_hand_is_looked_for_beyond_each_sure_wrist_and_marked_where_it_is_not() -> None:
+    from pipeline.pose.hands import body_hands, hands_array
+
+    image = np.zeros((480, 640, 3), np.uint8)
+    fake = _FakeLandmarks()
+    (left, right), = body_hands(fake, image, _body())
+    assert left is not None and right is not None
+    assert np.allclose(left.keypoints[0, :2], [200, 335], atol=1.0)  # 0.35 forearm beyond the wrist
+    (left, right), = body_hands(fake, image, _body(left_wrist_score=0.1))
+    assert left is None and right is not None                    # an unsure wrist: not looked at
+    (left, right), = body_hands(fake, image, _body(right_forearm=10.0))
+    assert right is None                                         # a hand of a few pixels: too small
+    (left, right), = body_hands(fake, image, _body(right_wrist_x=-50.0))
+    assert right is None                                         # off the picture
+    points, world = hands_array([(left, right)])
+    assert points.shape == world.shape == (1, 2, 21, 3)
+    assert (points[0, 0, :, 2] == np.float32(0.9)).all() and (points[0, 1] == 0).all()  # marked, not guessed
+
+
+def test_hands_are_drawn_between_keyframes_as_the_body_and_their_metric_depth_is_not_taken_as_a_score() -> None:
+    from pipeline.pose.keyframes import in_between
+    from pipeline.pose.pose2d import FramePoses
+
+    def keyframe(frame: int, x: float) -> FramePoses:
+        hands = np.zeros((1, 2, 21, 3), np.float32)
+        hands[..., 0], hands[..., 2] = x, 0.8 if frame == 0 else 0.6
+        world = np.full((1, 2, 21, 3), 0.01 * frame, np.float32)
+        return FramePoses(frame, frame / 30, np.array([[x, 0, x + 50, 100]], np.float32), np.ones(1, np.float32),
+                          np.zeros((1, 17, 3), np.float32), True, np.zeros((1, 4, 3), np.float32), False, hands, world)
+
+    middle, = in_between(keyframe(0, 100.0), keyframe(2, 120.0), [(1, 1 / 30)])
+    assert np.allclose(middle.hands[..., 0], 110.0) and np.allclose(middle.hands[..., 2], 0.6)
+    assert np.allclose(middle.hands_world, 0.01)  # drawn halfway, every coordinate
+
+
+def test_a_pose2d_file_carries_hands_only_where_they_were_asked_for(tmp_path: Path) -> None:
+    from pipeline.pose.pose2dfile import Poses, SegmentInfo, read_pose2d, write_pose2d
+
+    rng = np.random.default_rng(0)
+    n = 3
+    base = dict(frame=np.arange(n), time=np.arange(n) / 30, person=np.zeros(n), box=rng.random((n, 4)),
+                box_score=rng.random(n), keypoints=rng.random((n, 17, 3)), detected=np.ones(n, bool),
+                feet=rng.random((n, 4, 3)))
+    segment = SegmentInfo("s", 30.0, n, 64, 48)
+    hands, world = rng.random((n, 2, 21, 3)).astype(np.float32), rng.random((n, 2, 21, 3)).astype(np.float32)
+    write_pose2d(tmp_path / "with.parquet", Poses(**base, hands=hands, hands_world=world), segment, fingerprint="f",
+                 params={}, inputs={})
+    write_pose2d(tmp_path / "without.parquet", Poses(**base), segment, fingerprint="f", params={}, inputs={})
+    read = read_pose2d(tmp_path / "with.parquet").poses
+    assert np.array_equal(read.hands, hands) and np.array_equal(read.hands_world, world)
+    assert read_pose2d(tmp_path / "without.parquet").poses.hands is None
+
+
+def test_pose2d_with_hands_puts_the_dancers_sure_hands_on_her_wrists_on_every_frame(
+        dance_clip: Path, hand_model: Path, default_models, tmp_path: Path) -> None:
+    from dataclasses import replace
+
+    from pipeline.pose.models.session import create_session
+    from pipeline.pose.pose2d import collect_poses, estimate_segment
+    from tests.conftest import ffmpeg
+
+    clip = tmp_path / "clip.mp4"  # 2 s: her right hand comes up to her chin, her left to her hip
+    ffmpeg("-ss", "2", "-t", "2", "-i", str(dance_clip), "-an", "-c:v", "libx264", "-crf", "18", str(clip))
+    models, opts = default_models
+    poses, frames = collect_poses(estimate_segment(clip, 24.0, models.detector, models.pose, replace(opts, hands=True),
+                                                   hands=HandLandmarks(create_session(hand_model))))
+    assert frames == 48 and poses.hands.shape == (len(poses), 2, 21, 3)
+    sure = poses.hands[:, :, 0, 2] >= 0.5
+    assert sure[:, 0].any() and sure[:, 1].any()
+    assert sure[poses.interpolated_mask()].any()  # drawn between keyframes too
+    forearm = np.linalg.norm(poses.keypoints[:, [9, 10], :2] - poses.keypoints[:, [7, 8], :2], axis=-1)
+    off = np.linalg.norm(poses.hands[:, :, 0, :2] - poses.keypoints[:, [9, 10], :2], axis=-1)
+    assert (off[sure] < 0.5 * forearm[sure]).all()  # the hand's wrist on the body's
+    fingers = np.linalg.norm(poses.hands[:, :, 12, :2] - poses.hands[:, :, 0, :2], axis=-1)
+    assert (fingers[sure] > 0.3 * forearm[sure]).all()  # a hand, not a point
+
+
+def test_the_stages_with_hands_on_record_the_hand_model_and_the_qc_video_draws_the_hands(
+        project: Path, dance_clip: Path, hand_model: Path, models_dir: Path, monkeypatch, tmp_path: Path) -> None:
+    import cv2
+
+    from pipeline.core.storage import read_meta
+    from pipeline.pose.pose2dfile import read_pose2d
+    from pipeline.pose.qc import qc_video
+    from pipeline.pose.trackfile import read_tracks
+    from tests.conftest import ffmpeg, run_stages, set_params, write_sources
+
+    monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
+    (project / "models").mkdir()
+    (project / "models" / hand_model.name).symlink_to(hand_model)
+    clip = tmp_path / "clip.mp4"
+    ffmpeg("-ss", "3.5", "-t", "1", "-i", str(dance_clip), "-vf", "scale=540:960", "-c:v", "libx264", str(clip))
+    write_sources(project, [("solo", clip)])
+    (project / "annotations/segments.csv").write_text("video_id,start,end\nsolo,0,1\n")
+    set_params(project, "pose2d", hands=True)
+    run_stages(project, "download", "trim", "pose2d", "track")
+    pose2d = project / "data/pose2d/solo_000.parquet"
+    assert "hand-landmark-full" in read_meta(pose2d)["inputs"]
+    tracks = read_tracks(project / "data/tracks/solo_000.parquet")
+    assert tracks.hands is not None and np.array_equal(tracks.hands, read_pose2d(pose2d).poses.hands)
+    sure = np.flatnonzero(tracks.hands[:, 1, 0, 2] >= 0.5)  # her right hand, at her chin
+    assert len(sure)
+    video = qc_video(project, "solo_000")
+    capture = cv2.VideoCapture(str(video))
+    capture.set(cv2.CAP_PROP_POS_FRAMES, int(tracks.frame[sure[0]]))
+    ok, drawn = capture.read()
+    assert ok
+    original = cv2.VideoCapture(str(clip))
+    original.set(cv2.CAP_PROP_POS_FRAMES, int(tracks.frame[sure[0]]))
+    ok, plain = original.read()
+    assert ok
+    x, y = tracks.hands[sure[0], 1, 8, :2].astype(int)  # the index fingertip: a white joint drawn there
+    white = [(image[y - 2: y + 3, x - 2: x + 3].min(-1) > 200).any() for image in (drawn, plain)]
+    assert white == [True, False]

@@ -193,7 +193,8 @@ class _CountingPose:
 
 
 def _numbered_clip(path: Path, frames: int) -> Path:
-    """A lossless clip whose frame k is grey level 64 + 8 k, too bright to be brightened (so a fake model can tell the frames apart)."""
+    """A lossless clip whose frame k is grey level 64 + 8 k, too bright to be brightened (so a fake
+    model can tell the frames apart)."""
     import av
 
     with av.open(str(path), "w") as out:

@@ -22,6 +22,7 @@ if TYPE_CHECKING:
 
 DEFAULT_DETECTOR = "rtmdet-nano-person"
 DEFAULT_POSE_MODEL = "movenet-lightning"
+HAND_MODEL = "hand-landmark-full"  # with pose2d.hands
 
 
 @dataclass(frozen=True)
@@ -35,6 +36,7 @@ class ModelFiles:
     crop_padding: float = 1.25
     device: str = "auto"        # session.DEVICES
     runtimes: tuple[tuple[str, str, str], ...] = ()  # (file, runtime, precision) where not ONNX Runtime f32
+    hands: str | None = None    # the hand model's file (pose2d.hands)
 
     def runtime(self, path: str) -> tuple[str, str]:
         return next(((r, p) for f, r, p in self.runtimes if f == path), ("onnxruntime", "f32"))
@@ -46,9 +48,16 @@ def model_names(value: str | list[str]) -> list[str]:
     return [n.strip() for n in names if n.strip()]
 
 
+def hands_on(params: dict) -> bool:
+    """Whether ``pose2d.hands`` asks for hands (a YAML boolean, or a string from the command line)."""
+    value = params.get("hands", False)
+    return value if isinstance(value, bool) else str(value).strip().lower() in ("true", "yes", "on", "1")
+
+
 def _chosen(root: Path, params: dict) -> tuple[list, list, dict[str, Path], str, dict[str, tuple[str, str]]]:
     """(detector specs, pose specs, each model's file, the device, each model's runtime and precision),
-    checked in the main process, so a missing model or a bad runtime is one clear error up front."""
+    checked in the main process, so a missing model or a bad runtime is one clear error up front. The
+    hand model (``pose2d.hands``) is among the files and runtimes, not the specs."""
     from pipeline.pose.models.fetch import resolve_model
     from pipeline.pose.models.registry import get_spec
 
@@ -56,12 +65,14 @@ def _chosen(root: Path, params: dict) -> tuple[list, list, dict[str, Path], str,
     poses = [get_spec(name) for name in model_names(params.get("pose_model", DEFAULT_POSE_MODEL))]
     if len(poses) > 2:
         raise ValueError(f"pose2d.pose_model names {len(poses)} models; give one, or a body model + a feet model")
-    paths = {spec.name: resolve_model(spec.name, root) for spec in dets + poses}
+    extra = [get_spec(HAND_MODEL)] if hands_on(params) else []
+    paths = {spec.name: resolve_model(spec.name, root) for spec in dets + poses + extra}
     device = str(params.get("device", "auto"))
     try:  # an unknown device or runtime, cuda without CUDA, openvino not installed: one clear line up front
         providers(device)
         chosen = {spec.name: choose_runtime(spec.kind, str(params.get("runtime", "auto")),
-                                            str(params.get("precision", "auto")), device) for spec in dets + poses}
+                                            str(params.get("precision", "auto")), device)
+                  for spec in dets + poses + extra}
     except (ValueError, RuntimeError) as exc:
         raise InputError(root / "params.yaml", f"pose2d.{exc}") from None
     return dets, poses, paths, device, chosen
@@ -87,7 +98,8 @@ def worker_files(root: Path, params: dict) -> ModelFiles:
                       tuple((str(paths[p.name]), p.kind, p.input_size) for p in poses),
                       int(params.get("threads", 1)), Pose2dOptions.from_params(params).detector_floor,
                       float(params.get("crop_padding", 1.25)), device,
-                      tuple((str(paths[name]), *chosen[name]) for name in paths if runtime_label(*chosen[name])))
+                      tuple((str(paths[name]), *chosen[name]) for name in paths if runtime_label(*chosen[name])),
+                      str(paths[HAND_MODEL]) if HAND_MODEL in paths else None)
 
 
 def model_files(root: Path, params: dict) -> tuple[ModelFiles, dict[str, str]]:
@@ -142,4 +154,11 @@ def load_pose_models(files: ModelFiles) -> PoseModels:
         session = create_session(Path(path), files.threads, any_batch=batched, unused_outputs=unused_outputs(kind),
                                  device=files.device, runtime=runtime, precision=precision)
         poses.append(wrappers[kind](session, size, files.crop_padding))
-    return PoseModels(detector, poses[0] if len(poses) == 1 else BodyAndFeet(*poses))
+    hands = None
+    if files.hands is not None:
+        from pipeline.pose.hands import HandLandmarks
+
+        runtime, precision = files.runtime(files.hands)
+        hands = HandLandmarks(create_session(Path(files.hands), files.threads, device=files.device, runtime=runtime,
+                                             precision=precision))
+    return PoseModels(detector, poses[0] if len(poses) == 1 else BodyAndFeet(*poses), hands)
