@@ -56,6 +56,8 @@ def add_eval(sub: argparse._SubParsersAction) -> None:
     hands.add_argument("--regions", choices=("body+palm", "body", "palm", "annotated"), default="body+palm",
                        help="where hands are looked for (palm alone: MediaPipe's own pipeline, the peer)")
     hands.add_argument("--min-presence", type=float, default=0.5, help="the model's presence for a hand found")
+    hands.add_argument("--passes", type=int, default=None,
+                       help="the hand model's passes on a body's hand (default: params.yaml's pose2d.hand_passes)")
     _json_out(hands)
     beats = evaluate_sub.add_parser(
         "beats", help="both beat trackers against beat annotations (mir_eval), per file",
@@ -246,6 +248,7 @@ def _eval_hands(root: Path, args: argparse.Namespace) -> dict:
 
     read_hand_annotations(args.annotations)  # a bad file is named before any model loads
     params = stage_params(project_or_default_params(root), "pose2d")
+    params = {**params, **({"hand_passes": args.passes} if args.passes else {})}
     return evaluate_hands(args.annotations, args.images, regions=args.regions, min_presence=args.min_presence,
                           **load_models(root, params, args.regions),
                           describe={"hand_model": "hand-landmark-full", "pose_model": params.get("pose_model")})

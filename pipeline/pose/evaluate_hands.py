@@ -71,7 +71,7 @@ def people_hands(image: np.ndarray, detector, pose, opts, landmarks: HandLandmar
         height, width = image.shape[:2]
         hand = landmarks.estimate(image, region_from_box(np.array([0, 0, width, height]), landmarks.size, 1.0))
         return [("right" if hand.right >= 0.5 else "left", hand)]
-    return [(side, hand) for pair in body_hands(landmarks, image, batch.keypoints)
+    return [(side, hand) for pair in body_hands(landmarks, image, batch.keypoints, opts.hand_passes)
             for side, hand in zip(SIDES, pair) if hand is not None]
 
 
