@@ -18,7 +18,8 @@ from pipeline.motion.world.worldfile import SCHEMA_VERSION
 
 CODE = code_fingerprint(*(f"pipeline.motion.world.{name}" for name in (
     "grounding", "contact", "gravity", "trajectory", "rotations", "worldfile", "scene", "bones", "segment")),
-    "pipeline.motion.smpl.retarget", "pipeline.motion.smpl.kinematics", "pipeline.motion.smpl.skeleton")
+    "pipeline.motion.hands", "pipeline.motion.smpl.retarget", "pipeline.motion.smpl.kinematics",
+    "pipeline.motion.smpl.skeleton")
 
 
 def run(root: Path) -> None:

@@ -15,7 +15,8 @@ from pipeline.core.storage import code_fingerprint, fingerprint, item_files, rea
 from pipeline.motion.motionfile import SCHEMA_VERSION
 
 CODE = code_fingerprint("pipeline.motion.lifting.infer", "pipeline.motion.world.contact_model",
-                        "pipeline.motion.world.trajectory")  # the root path and the sight rays
+                        "pipeline.motion.world.trajectory",  # the root path and the sight rays
+                        "pipeline.motion.hands")
 
 
 def run(root: Path) -> None:

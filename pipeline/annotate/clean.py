@@ -1,7 +1,7 @@
 """Apply a manifest to a segment's tracks: every kept span becomes clips of one dancer.
 
 Inside a span, gaps of up to ``max_gap`` missing frames are filled by linear
-interpolation of the box, keypoints and feet (and marked ``interpolated``); a longer gap
+interpolation of the box, keypoints, feet and hands (and marked ``interpolated``); a longer gap
 splits the span into separate clips. Clips shorter than ``min_clip_seconds`` are dropped
 and counted. Clip ids are ``<segment_id>_<track_id>_<k>``, k counting a track's clips
 from 0 in time order.
@@ -66,9 +66,11 @@ def apply_manifest(tracks: SegmentTracks, spans: list[Span], opts: CleanOptions)
             mask = ~np.isin(full, f)
             interpolated += int(mask.sum())
             picked = rows[piece]
+            hands = {} if tracks.hands is None else {"hands": _fill(f, tracks.hands[picked], full),
+                                                     "hands_world": _fill(f, tracks.hands_world[picked], full)}
             clips.append(Clip(f"{tracks.segment_id}_{span.track_id}_{k}", span.track_id, full,
                               _fill(f, tracks.box[picked], full), _fill(f, tracks.keypoints[picked], full), mask,
-                              _fill(f, tracks.feet[picked], full)))
+                              _fill(f, tracks.feet[picked], full), **hands))
     return CleanResult(clips, dropped, interpolated)
 
 

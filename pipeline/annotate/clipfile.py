@@ -3,7 +3,8 @@
 One row per clip frame: clip_id (``<segment_id>_<track_id>_<k>``), track_id, frame
 (contiguous within a clip), time (frame / fps, segment clock), box, keypoints (COCO-17
 x, y, score), feet (as in the pose2d table), interpolated (the frame was a gap filled by
-interpolation). Metadata: the segment, whether spans came from a manifest or a proposal, and how
+interpolation), and where pose2d found hands (``pose2d.hands``) hands and hands_world (as in the
+pose2d table; schema 4). Metadata: the segment, whether spans came from a manifest or a proposal, and how
 many clips were too short to keep.
 """
 
@@ -17,9 +18,10 @@ import numpy as np
 import pyarrow as pa
 
 from pipeline.core.storage import column_array, fixed_list, read_file_table, read_meta, write_parquet
-from pipeline.pose.pose2dfile import FEET, KEYPOINTS, SegmentInfo
+from pipeline.pose.pose2dfile import FEET, HAND_POINTS, HANDS_FIELDS, KEYPOINTS, SegmentInfo
 
-SCHEMA_VERSION = 3  # 2: feet and world, carried from pose2d; 3: no world (two thirds of the file, never read)
+SCHEMA_VERSION = 4  # 2: feet and world, carried from pose2d; 3: no world (two thirds of the file, never read);
+                    # 4: hands and hands_world, where pose2d has them
 CLEAN_SCHEMA = pa.schema(
     [
         ("clip_id", pa.string()),
@@ -43,6 +45,8 @@ class Clip:
     keypoints: np.ndarray     # n x 17 x 3
     interpolated: np.ndarray  # n bool
     feet: np.ndarray          # n x 4 x 3: heels and toes (score 0: none)
+    hands: np.ndarray | None = None        # n x 2 x 21 x 3: left, right hand (x, y, presence; None: not asked for)
+    hands_world: np.ndarray | None = None  # n x 2 x 21 x 3: metres about each hand
 
 
 @dataclass(frozen=True)
@@ -62,7 +66,7 @@ def clips_table(clips: list[Clip], fps: float) -> pa.Table:
     if not n:
         return CLEAN_SCHEMA.empty_table()
     frame = np.concatenate([c.frame for c in clips]).astype(np.int32)
-    return pa.Table.from_arrays([
+    table = pa.Table.from_arrays([
         pa.array(np.concatenate([[c.clip_id] * len(c.frame) for c in clips]), pa.string()),
         pa.array(np.concatenate([np.full(len(c.frame), c.track_id) for c in clips]), pa.int32()),
         pa.array(frame, pa.int32()),
@@ -72,6 +76,12 @@ def clips_table(clips: list[Clip], fps: float) -> pa.Table:
         pa.array(np.concatenate([c.interpolated for c in clips]), pa.bool_()),
         fixed_list(np.concatenate([c.feet for c in clips]).reshape(-1, FEET * 3)),
     ], schema=CLEAN_SCHEMA)
+    if clips[0].hands is None:  # a segment's clips all have hands, or none has
+        return table
+    for field in HANDS_FIELDS:
+        values = np.concatenate([getattr(c, field.name) for c in clips]).reshape(-1, 2 * HAND_POINTS * 3)
+        table = table.append_column(field, fixed_list(values))
+    return table
 
 
 def write_clean(path: Path, clips: list[Clip], segment: SegmentInfo, *, spans_from: str, dropped_short: int,
@@ -92,10 +102,12 @@ def read_clean(path: Path) -> CleanFile:
     kps = column_array(table, "keypoints", (KEYPOINTS, 3))
     interp = column_array(table, "interpolated").astype(bool)
     feet = column_array(table, "feet", (FEET, 3))  # a schema-2 file's world column is left unread
+    hands = {f.name: column_array(table, f.name, (2, HAND_POINTS, 3)) for f in HANDS_FIELDS
+             if f.name in table.column_names}
     clips = []
     for clip_id in dict.fromkeys(ids):  # file order
         rows = np.flatnonzero(ids == clip_id)
         clips.append(Clip(str(clip_id), int(track[rows[0]]), frame[rows], box[rows], kps[rows], interp[rows],
-                          feet[rows]))
+                          feet[rows], **{name: values[rows] for name, values in hands.items()}))
     return CleanFile(SegmentInfo.from_meta(meta, path), clips, str(meta.get("spans_from", "manifest")),
                      int(meta.get("dropped_short", 0)), str(meta.get("fingerprint", "")))

@@ -110,7 +110,14 @@ def render_motion(root: Path, args: argparse.Namespace) -> int:
 
         grounded = ground_in_scene(read_clips(args.motion), args.clip_id, fps)
         world = grounded.joints if grounded.feet is None else np.concatenate([grounded.joints, grounded.feet], 1)
-        render_clip(world, clip.time, fps, args.out, audio=audio, title=args.clip_id, contact=grounded.contact)
+        hands = None
+        if clip.hands is not None:
+            from pipeline.motion.hands import H36M_WRISTS, world_hands
+
+            hands = world_hands(clip.hands, clip.hand_presence, grounded.camera.rotation,
+                                grounded.joints[:, list(H36M_WRISTS)])
+        render_clip(world, clip.time, fps, args.out, audio=audio, title=args.clip_id, contact=grounded.contact,
+                    hands=hands)
     else:
         joints = clip.joints if clip.feet is None else np.concatenate([clip.joints, clip.feet], 1)
         render_clip(joints, clip.time, fps, args.out, audio=audio, title=args.clip_id)
@@ -134,7 +141,7 @@ def render_smpl(root: Path, args: argparse.Namespace) -> int:
     world = clip.joints if clip.feet is None else np.concatenate([clip.joints, clip.feet], 1)
     render_clip(world, clip.time, float(meta.get("fps", 24.0)), args.out,
                 audio=root / AUDIO / f"{meta.get('segment_id', '')}.flac", title=f"{args.clip_id} + SMPL",
-                contact=clip.contact, smpl=smpl.joints)
+                contact=clip.contact, smpl=smpl.joints, hands=clip.hands)
     print(f"wrote {args.out}: the world skeleton with the SMPL skeleton in yellow")
     return 0
 

@@ -220,6 +220,7 @@ holding every dancer whose clip covers the whole window, in track-id order. {cou
 | world_joints | D x {frames} x 17 x 3 float32 | each dancer in the segment's scene: y up, one floor at y = 0, x/z in metres about the group's centre over the window (positions relative to each other kept) |
 | root | D x {frames} x 3 float32 | each dancer's pelvis: where they stand and travel, in formation |
 | world_feet | D x {frames} x 4 x 3 float32 | heels and toe tips, the same frame (NaN without feet) |
+| world_hands | D x {frames} x 2 x 21 x 3 float32 | left and right hands, the same frame, as in the solo windows (NaN without hands) |
 | contact, planted | D x {frames} x 2 / 4 int8 | as in the solo windows, per dancer |
 | camera_pitch, camera_roll | float32 | the scene's camera tilt (degrees), from all its dancers |
 | mfcc, chroma, onset, beat, tempo | | the window's music, as in the solo windows |
@@ -294,6 +295,8 @@ PyTorch loader is `pipeline.train.dataset.WindowDataset`. Each file's key-value 
 | contact_probability | {round(window * fps)} x 4 float32 | the contact model's probability for each of those points (NaN: a corpus built without the contact model, whose contact is the older ankle rule) |
 | feet | {round(window * fps)} x 4 x 3 float32 | left heel, right heel, left toe tip, right toe tip, like motion (root-relative, camera frame); NaN when the lifter has no feet |
 | world_feet | {round(window * fps)} x 4 x 3 float32 | the same points like world_joints: planted points stand where they were planted, on the floor; the others ride on their ankles |
+| world_hands | {round(window * fps)} x 2 x 21 x 3 float32 | the left, then the right hand's 21 points (MediaPipe's order: wrist, then thumb, index, middle, ring and pinky from the palm out) like world_joints: the hand model's metric hand, one skeleton per clip, hung on the wrist; where the model is unsure, drawn between the frames where it is sure (see hand_confidence). NaN for a hand never seen in the clip, and where the corpus was built without `pose2d.hands` |
+| hand_confidence | {round(window * fps)} x 2 float32 | the hand model's presence for each hand and frame (0.5 and up: sure, MediaPipe's threshold); NaN without hands |
 | rotations_6d | {round(window * fps)} x 23 x 6 float32 | local joint rotations on the clip's skeleton, 6D (first two columns of each 3 x 3 rotation), joints in the order of `dance3d export bvh`'s hierarchy (file metadata `rotation_joints`); T-pose rest, y up, facing +z |
 | bone_lengths | 16 float32 | the clip's skeleton (metres; bones in the order of the file metadata `bones`) |
 | camera_pitch, camera_roll | float32 | the camera's estimated tilt (degrees; pitch > 0: looking down), from the body's long axis over the clip |

@@ -19,7 +19,7 @@ import pyarrow as pa
 
 from pipeline.corpus.windows import CHROMA_DIMS, MFCC_DIMS, tensor_column
 
-GROUP_SCHEMA_VERSION = 1
+GROUP_SCHEMA_VERSION = 2  # 2: world_hands
 MIN_DANCERS = 2
 
 
@@ -34,6 +34,7 @@ class GroupWindow:
     chroma: np.ndarray        # W x 12
     onset: np.ndarray         # W
     beat: np.ndarray          # W
+    hands: np.ndarray | None = None  # D x W x 2 x 21 x 3 (NaN: none)
 
 
 def group_starts(first: int, end: int, window: int, hop: int) -> list[int]:
@@ -61,13 +62,15 @@ def segment_group_windows(clips: list, feats, window: int, hop: int, meta: dict)
         centre = world[:, :, 0].reshape(-1, 3).mean(0) * [1.0, 0.0, 1.0]  # the group's centre over the window
         planted = np.stack([c.planted[r] if c.planted is not None else np.zeros((window, 4), bool)
                             for c, r in zip(inside, rows)])
+        hands = np.stack([c.hands[r] if c.hands is not None else np.full((window, 2, 21, 3), np.nan)
+                          for c, r in zip(inside, rows)]).astype(np.float64)
         out.append(GroupWindow(
             {**meta, "window_id": f"{meta['segment_id']}_g{k:06d}", "start_frame": k, "start_time": k / meta["fps"],
              "dancers": len(inside), "clip_ids": [c.clip_id for c in inside],
              "track_ids": [c.track_id for c in inside]},
             world - centre, feet - centre, np.stack([c.contact[r] for c, r in zip(inside, rows)]), planted,
             feats.mfcc[k: k + window], feats.chroma[k: k + window], feats.onset[k: k + window],
-            feats.beat[k: k + window]))
+            feats.beat[k: k + window], hands - centre))
     return out
 
 
@@ -101,6 +104,7 @@ def group_schema(window: int) -> pa.Schema:
         ("world_joints", pa.list_(fixed(pa.float32(), window, 17, 3))),  # per dancer: y up, floor 0, about the group
         ("root", pa.list_(fixed(pa.float32(), window, 3))),             # per dancer: world_joints' pelvis
         ("world_feet", pa.list_(fixed(pa.float32(), window, 4, 3))),    # per dancer: heels, toe tips (NaN: none)
+        ("world_hands", pa.list_(fixed(pa.float32(), window, 2, 21, 3))),  # per dancer: left, right hand (NaN: none)
         ("contact", pa.list_(fixed(pa.int8(), window, 2))),             # per dancer: left, right foot on the floor
         ("planted", pa.list_(fixed(pa.int8(), window, 4))),             # per dancer: each heel and toe tip planted
         ("camera_pitch", pa.float32()), ("camera_roll", pa.float32()),  # the scene's, degrees
@@ -121,6 +125,7 @@ def group_table(windows: list[GroupWindow], window: int) -> pa.Table:
         "world_joints": _per_dancer([w.world for w in windows], pa.float32(), (window, 17, 3), np.float32),
         "root": _per_dancer([w.world[:, :, 0] for w in windows], pa.float32(), (window, 3), np.float32),
         "world_feet": _per_dancer([w.feet for w in windows], pa.float32(), (window, 4, 3), np.float32),
+        "world_hands": _per_dancer([w.hands for w in windows], pa.float32(), (window, 2, 21, 3), np.float32),
         "contact": _per_dancer([w.contact for w in windows], pa.int8(), (window, 2), np.int8),
         "planted": _per_dancer([w.planted for w in windows], pa.int8(), (window, 4), np.int8),
     }

@@ -19,13 +19,14 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 
-SCHEMA_VERSION = 9  # 2: beat, downbeat and motion-beat frames, alignment scores; any frame rate. 3: tags.
+SCHEMA_VERSION = 10  # 2: beat, downbeat and motion-beat frames, alignment scores; any frame rate. 3: tags.
 #                    4: world-frame joints, root path, foot contact, bone lengths, 6D rotations, camera pitch/roll
 #                    5: feet, world_feet. 6: contact from the learned contact model, planted, contact_probability
 #                    7: group_window_id (the group window, corpus/groups.py, that holds this one's dancer)
 #                    8: smpl_poses, smpl_trans, smpl_scaling (the motion on the SMPL tree, motion/smpl)
 #                    9: downbeat flags, beat and bar phase, beat and downbeat times, the dancers' beat level,
 #                       the tracker, the AIST++ beat-align score beside Bailando's
+#                    10: world_hands, hand_confidence (NaN where pose2d.hands is off)
 FPS = 24  # the default corpus rate
 MFCC_DIMS = 39
 # A window built without beat analysis (tests, benchmarks) has no beats: empty lists, NaN scores.
@@ -69,6 +70,8 @@ def corpus_schema(window: int) -> pa.Schema:
         ("contact_probability", fixed(fixed(pa.float32(), 4), window)),       # the contact model's (NaN: none)
         ("feet", fixed(fixed(fixed(pa.float32(), 3), 4), window)),            # heels, toe tips like motion (NaN: none)
         ("world_feet", fixed(fixed(fixed(pa.float32(), 3), 4), window)),      # ... like world_joints
+        ("world_hands", fixed(fixed(fixed(fixed(pa.float32(), 3), 21), 2), window)),  # left, right hand, likewise
+        ("hand_confidence", fixed(fixed(pa.float32(), 2), window)),          # the hand model's presence (NaN: none)
         ("rotations_6d", fixed(fixed(fixed(pa.float32(), 6), ROTATION_JOINTS), window)),
         ("bone_lengths", fixed(pa.float32(), BONES)),                         # the clip's one skeleton (m)
         ("camera_pitch", pa.float32()), ("camera_roll", pa.float32()),         # degrees, estimated per clip
@@ -117,6 +120,8 @@ class Window:
     downbeat: np.ndarray | None = None    # W (None: zeros)
     beat_phase: np.ndarray | None = None  # W (None: NaN)
     bar_phase: np.ndarray | None = None   # W (None: NaN)
+    world_hands: np.ndarray | None = None  # W x 2 x 21 x 3 like world (None: NaN)
+    hand_confidence: np.ndarray | None = None  # W x 2 (None: NaN)
 
 
 def tensor_column(values: np.ndarray, dtype: pa.DataType, shape: tuple[int, ...]) -> pa.Array:
@@ -131,7 +136,7 @@ def windows_table(windows: list[Window], window: int) -> pa.Table:
     schema = corpus_schema(window)
     tensors = ("motion", "mfcc", "chroma", "onset", "beat", "world_joints", "root", "contact", "rotations_6d",
                "bone_lengths", "feet", "world_feet", "planted", "contact_probability", "smpl_poses", "smpl_trans",
-               "downbeat", "beat_phase", "bar_phase")
+               "downbeat", "beat_phase", "bar_phase", "world_hands", "hand_confidence")
     defaults = {**BEAT_DEFAULTS, **WORLD_DEFAULTS}
     scalars = {name: [w.meta.get(name, defaults[name]) if name in defaults else w.meta[name] for w in windows]
                for name in schema.names if name not in tensors}
@@ -169,6 +174,10 @@ def windows_table(windows: list[Window], window: int) -> pa.Table:
                                        (window, 4)),
         "smpl_poses": tensor_column(stack("smpl_poses", (window, 72)).astype(np.float32), pa.float32(), (window, 72)),
         "smpl_trans": tensor_column(stack("smpl_trans", (window, 3)).astype(np.float32), pa.float32(), (window, 3)),
+        "world_hands": tensor_column(stack("world_hands", (window, 2, 21, 3)).astype(np.float32), pa.float32(),
+                                     (window, 2, 21, 3)),
+        "hand_confidence": tensor_column(stack("hand_confidence", (window, 2)).astype(np.float32), pa.float32(),
+                                         (window, 2)),
     }
     columns = [arrays[f.name] if f.name in arrays else pa.array(scalars[f.name], f.type) for f in schema]
     return pa.Table.from_arrays(columns, schema=schema)

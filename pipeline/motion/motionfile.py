@@ -11,7 +11,9 @@ NaN when the lifter has no feet; schema 3), contact (the probability that the le
 heel, left toe tip, right toe tip is planted, from the contact model: world/contact_model.py;
 NaN without one; schema 4), feet_rays (the unit directions, camera frame, in which the left heel,
 right heel, left toe tip and right toe tip are seen: their 2D keypoints and the assumed focal
-length; where a planted one meets the floor fixes the root's depth; NaN without 2D feet; schema 5).
+length; where a planted one meets the floor fixes the root's depth; NaN without 2D feet; schema 5),
+and where pose2d found hands, hands (left, right hand's 21 points, wrist-relative, metres, camera
+axes: ``pipeline.motion.hands``) and hand_presence (the hand model's, per hand; schema 6).
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ import pyarrow.parquet as pq
 
 from pipeline.core.storage import column_array, fixed_list, read_meta, write_parquet
 
-SCHEMA_VERSION = 5
+SCHEMA_VERSION = 6
 MOTION_SCHEMA = pa.schema(
     [
         ("clip_id", pa.string()),
@@ -42,6 +44,8 @@ MOTION_SCHEMA = pa.schema(
         ("feet_rays", pa.list_(pa.float32(), 12)),
     ]
 )
+HANDS_FIELDS = [pa.field("hands", pa.list_(pa.float32(), 2 * 21 * 3)),
+                pa.field("hand_presence", pa.list_(pa.float32(), 2))]
 
 
 @dataclass
@@ -57,6 +61,8 @@ class MotionClip:
     feet: np.ndarray | None = None  # n x 4 x 3 heels and toe tips, like joints (None: the lifter has none)
     contact: np.ndarray | None = None  # n x 4 contact probabilities of the heels and toe tips (None: not known)
     feet_rays: np.ndarray | None = None  # n x 4 x 3 unit directions the heels and toes are seen in (None: unknown)
+    hands: np.ndarray | None = None      # n x 2 x 21 x 3 wrist-relative hands, camera axes (None: not asked for)
+    hand_presence: np.ndarray | None = None  # n x 2 the hand model's presence per hand
 
 
 def clips_to_table(clips: list[MotionClip]) -> pa.Table:
@@ -66,7 +72,7 @@ def clips_to_table(clips: list[MotionClip]) -> pa.Table:
     def cat(attr: str) -> np.ndarray:
         return np.concatenate([getattr(c, attr) for c in clips])
 
-    return pa.Table.from_arrays([
+    table = pa.Table.from_arrays([
         pa.array(np.concatenate([[c.clip_id] * len(c.frame) for c in clips]), pa.string()),
         pa.array(np.concatenate([np.full(len(c.frame), c.track_id) for c in clips]), pa.int32()),
         pa.array(cat("frame"), pa.int32()),
@@ -83,6 +89,10 @@ def clips_to_table(clips: list[MotionClip]) -> pa.Table:
         fixed_list(np.concatenate([c.feet_rays.reshape(-1, 12) if c.feet_rays is not None
                                    else np.full((len(c.frame), 12), np.nan) for c in clips])),
     ], schema=MOTION_SCHEMA)
+    if clips[0].hands is None:  # a segment's clips all have hands, or none has
+        return table
+    table = table.append_column(HANDS_FIELDS[0], fixed_list(cat("hands").reshape(-1, 2 * 21 * 3)))
+    return table.append_column(HANDS_FIELDS[1], fixed_list(cat("hand_presence").reshape(-1, 2)))
 
 
 @dataclass(frozen=True)
@@ -128,6 +138,8 @@ def read_clips(path: Path) -> list[MotionClip]:
     feet = column_array(table, "feet", (4, 3)) if "feet" in table.column_names else None
     contact = column_array(table, "contact", (4,)) if "contact" in table.column_names else None
     rays = column_array(table, "feet_rays", (4, 3)) if "feet_rays" in table.column_names else None
+    hands = column_array(table, "hands", (2, 21, 3)) if "hands" in table.column_names else None
+    presence = column_array(table, "hand_presence", (2,)) if "hand_presence" in table.column_names else None
     clips = []
     for clip_id in dict.fromkeys(ids):  # file order
         rows = np.flatnonzero(ids == clip_id)
@@ -136,5 +148,6 @@ def read_clips(path: Path) -> list[MotionClip]:
         planted = None if contact is None or np.isnan(contact[rows]).all() else contact[rows]
         seen = None if rays is None or np.isnan(rays[rows]).all() else rays[rows]
         clips.append(MotionClip(clip_id, int(track[rows[0]]), frame[rows], time[rows], joints[rows],
-                                interp[rows], filled[rows], path, heels_toes, planted, seen))
+                                interp[rows], filled[rows], path, heels_toes, planted, seen,
+                                None if hands is None else hands[rows], None if presence is None else presence[rows]))
     return clips

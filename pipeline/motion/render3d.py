@@ -76,11 +76,26 @@ def _draw_smpl(image: np.ndarray, pts: np.ndarray) -> None:
         cv2.circle(image, (int(q[0]), int(q[1])), 2, (0, 230, 255), -1, cv2.LINE_AA)
 
 
+def _draw_hands(image: np.ndarray, hands: np.ndarray) -> None:
+    """Each hand's 21 points (2 x 21 x 3 projected: NaN where none) as thin white fingers."""
+    from pipeline.motion.hands import HAND_PARENTS
+
+    for hand in hands:
+        if not np.isfinite(hand).all():
+            continue
+        for j, p in enumerate(HAND_PARENTS):
+            if p >= 0:
+                cv2.line(image, tuple(int(v) for v in hand[p]), tuple(int(v) for v in hand[j]), (240, 240, 240), 1,
+                         cv2.LINE_AA)
+
+
 def draw_world(joints: np.ndarray, contact: np.ndarray, trail: np.ndarray, centre: np.ndarray,
-               size: int = 480, extent: float = 1.6, smpl: np.ndarray | None = None) -> np.ndarray:
+               size: int = 480, extent: float = 1.6, smpl: np.ndarray | None = None,
+               hands: np.ndarray | None = None) -> np.ndarray:
     """Two panels of world motion (y up, floor y = 0): an oblique view with the floor grid, and
     the floor seen from above. Feet in contact are green discs; the root's recent path is the
-    orange trail. ``smpl`` (24 x 3): the SMPL skeleton's joints, drawn in yellow over the world's."""
+    orange trail. ``smpl`` (24 x 3): the SMPL skeleton's joints, drawn in yellow over the world's;
+    ``hands`` (2 x 21 x 3, NaN where none): the hands' fingers, in white."""
     scale = size / (2 * extent)
     floor_c = np.array([centre[0], 0.0, centre[2]])
     views = (lambda p: _oblique(p, floor_c + [0.0, 0.9, 0.0]) * scale + size / 2,
@@ -106,6 +121,8 @@ def draw_world(joints: np.ndarray, contact: np.ndarray, trail: np.ndarray, centr
         _draw_bones(panel, pts)
         if smpl is not None:
             _draw_smpl(panel, project(smpl))
+        if hands is not None:
+            _draw_hands(panel, project(hands))
         panels.append(panel)
     canvas = np.concatenate(panels, axis=1)
     cv2.line(canvas, (size, 0), (size, size), (90, 90, 90), 1)
@@ -141,10 +158,12 @@ def encode_mp4(frames: Iterable[np.ndarray], out: Path, width: int, height: int,
 
 
 def render_clip(joints: np.ndarray, times: np.ndarray, fps: float, out: Path, *, audio: Path | None = None,
-                title: str = "", contact: np.ndarray | None = None, smpl: np.ndarray | None = None) -> None:
+                title: str = "", contact: np.ndarray | None = None, smpl: np.ndarray | None = None,
+                hands: np.ndarray | None = None) -> None:
     """Write ``out`` (H.264 mp4); ``audio`` (the segment's wav) is cut to the clip's times.
     ``joints``: T x 17 x 3, or 21 with the heels and toes. With ``contact`` (T x 2), ``joints``
-    are world motion and are drawn with ``draw_world``, and ``smpl`` (T x 24 x 3) over them."""
+    are world motion and are drawn with ``draw_world``, and ``smpl`` (T x 24 x 3) and ``hands``
+    (T x 2 x 21 x 3) over them."""
     size = 480
     centre = joints[:, 0].mean(0)
 
@@ -152,7 +171,7 @@ def render_clip(joints: np.ndarray, times: np.ndarray, fps: float, out: Path, *,
         for k, (pose, t) in enumerate(zip(joints, times)):
             frame = draw_pose(pose, size) if contact is None else draw_world(
                 pose, contact[k], joints[max(0, k - int(4 * fps)): k + 1, 0], centre, size,
-                smpl=None if smpl is None else smpl[k])
+                smpl=None if smpl is None else smpl[k], hands=None if hands is None else hands[k])
             cv2.putText(frame, f"{title}  {format_time(float(t))}", (10, size - 12), cv2.FONT_HERSHEY_SIMPLEX, 0.6,
                         (255, 255, 255), 1, cv2.LINE_AA)
             yield frame

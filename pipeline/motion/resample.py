@@ -57,7 +57,8 @@ class ResampleJob:
 
 def resample_clip(clip, fps: float):
     """A motion clip on the ``fps`` grid (None when no grid point falls inside it): cubic for the
-    motion, linear for the contact probabilities (a spline would overshoot 0 and 1) and the sight rays."""
+    motion (hands too), linear for the contact probabilities and the hands' presence (a spline would
+    overshoot 0 and 1) and the sight rays."""
     from pipeline.motion.motionfile import MotionClip
 
     frames, joints = resample_cubic(clip.time, clip.joints, fps)
@@ -72,8 +73,11 @@ def resample_clip(clip, fps: float):
     if clip.feet_rays is not None:  # directions: between the two, then of unit length again
         rays = interpolate_linear(at, clip.time, clip.feet_rays)
         rays = (rays / np.linalg.norm(rays, axis=-1, keepdims=True)).astype(np.float32)
+    hands = None if clip.hands is None else resample_cubic(clip.time, clip.hands, fps)[1].astype(np.float32)
+    presence = (None if clip.hand_presence is None
+                else interpolate_linear(at, clip.time, clip.hand_presence).astype(np.float32))
     return MotionClip(clip.clip_id, clip.track_id, frames, frames / fps, joints.astype(np.float32),
-                      clip.interpolated[near], clip.filled_joints[near], root, feet, contact, rays)
+                      clip.interpolated[near], clip.filled_joints[near], root, feet, contact, rays, hands, presence)
 
 
 def resample_segment(job: ResampleJob) -> dict:

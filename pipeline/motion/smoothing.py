@@ -93,13 +93,15 @@ class SmoothJob:
 
 
 def smooth_clip(clip, lamb: float):
-    """A motion clip HP-filtered: joints, root path and feet (contact probabilities and sight rays,
-    observations rather than motion, pass unchanged)."""
+    """A motion clip HP-filtered: joints, root path, feet and hands (contact probabilities, sight
+    rays and the hands' presence, observations rather than motion, pass unchanged)."""
     trend = hp_trend(clip.joints.reshape(len(clip.joints), -1), lamb).reshape(clip.joints.shape)
     root = None if clip.root is None else hp_trend(clip.root.astype(np.float64), lamb).astype(np.float32)
     feet = None if clip.feet is None else hp_trend(clip.feet.reshape(len(clip.feet), -1).astype(np.float64),
                                                   lamb).reshape(clip.feet.shape).astype(np.float32)
-    return replace(clip, joints=trend.astype(np.float32), root=root, feet=feet)
+    hands = None if clip.hands is None else hp_trend(clip.hands.reshape(len(clip.hands), -1).astype(np.float64),
+                                                    lamb).reshape(clip.hands.shape).astype(np.float32)
+    return replace(clip, joints=trend.astype(np.float32), root=root, feet=feet, hands=hands)
 
 
 def smooth_segment(job: SmoothJob) -> dict:

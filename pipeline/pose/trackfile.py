@@ -41,6 +41,7 @@ class SegmentTracks:
     feet: np.ndarray       # N x 4 x 3 (score 0: none)
     drawn: np.ndarray      # N bool: drawn between two keyframes, not posed (pose2d's ``interpolated``)
     hands: np.ndarray | None = None  # N x 2 x 21 x 3 (pose2d's ``hands``; None: not asked for)
+    hands_world: np.ndarray | None = None  # N x 2 x 21 x 3 metres about each hand (pose2d's ``hands_world``)
 
     def of(self, track_id: int) -> np.ndarray:
         """Row indices of one track, in frame order."""
@@ -86,4 +87,5 @@ def read_tracks(path: Path) -> SegmentTracks:
         track_id=column_array(table, "track_id").astype(np.int64), box=np.asarray(poses.box),
         keypoints=np.asarray(poses.keypoints), fingerprint=str(meta.get("fingerprint", "")),
         feet=np.asarray(poses.feet), drawn=poses.interpolated_mask(), hands=poses.hands,
+        hands_world=poses.hands_world,
     )

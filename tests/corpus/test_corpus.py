@@ -13,7 +13,7 @@ from torch.utils.data import DataLoader
 
 from pipeline.corpus.build import write_shards
 from pipeline.corpus.card import style_stats
-from pipeline.corpus.windows import Window, split_of, window_starts
+from pipeline.corpus.windows import SCHEMA_VERSION, Window, split_of, window_starts
 from pipeline.train.dataset import WindowDataset
 from pipeline.train.loop import TrainConfig, train_tsmt
 from pipeline.train.model import TSMTConfig, TwoStreamMotionTransformer, generate
@@ -96,7 +96,7 @@ def test_shards_round_trip_through_pyarrow_pandas_and_datasets(corpus) -> None:
         assert np.array_equal(np.array(record["motion"], np.float32), by_id[record["window_id"]].motion)
         assert np.array_equal(np.array(record["beat"], np.int8), by_id[record["window_id"]].beat)
     meta = pq.read_schema(files[0]).metadata[b"dance3d"]
-    assert b'"schema_version": 9' in meta and b'"fps": 24' in meta
+    assert f'"schema_version": {SCHEMA_VERSION}'.encode() in meta and b'"fps": 24' in meta
     assert b"LeftShoulderRoot" in meta and b"left_hip-left_knee" in meta  # rotation joint and bone names
 
 
@@ -233,8 +233,9 @@ def test_the_loader_refuses_shards_of_another_schema_naming_the_file_and_the_fix
     write_shards(tmp_path, synthetic_windows(n_videos=2, per_clip=2), 48, per_shard=8, row_group=4, params={})
     shard = sorted((tmp_path / "data/corpus").rglob("*.parquet"))[0]
     table = pq.read_table(shard)
-    meta = table.schema.metadata[b"dance3d"].replace(b'"schema_version": 9', b'"schema_version": 5')
+    meta = table.schema.metadata[b"dance3d"].replace(f'"schema_version": {SCHEMA_VERSION}'.encode(),
+                                                     b'"schema_version": 5')
     pq.write_table(table.replace_schema_metadata({b"dance3d": meta}), shard)
-    with pytest.raises(InputError, match=r"shard-00000.parquet: corpus schema 5, this dance3d reads schema 9: "
-                                         r"rebuild the corpus with `dvc repro shard`"):
+    with pytest.raises(InputError, match=rf"shard-00000.parquet: corpus schema 5, this dance3d reads schema "
+                                         rf"{SCHEMA_VERSION}: rebuild the corpus with `dvc repro shard`"):
         WindowDataset(shard.parent)

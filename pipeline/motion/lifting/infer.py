@@ -176,6 +176,16 @@ def lift_clips(models: LiftModels, keypoints: list[np.ndarray], feet: list[np.nd
     return out
 
 
+def clip_hands(clip) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """A clean clip's hands as the motion files carry them (``pipeline.motion.hands.hand_shapes``):
+    wrist-relative metric shapes and each hand's presence; (None, None) without hands."""
+    from pipeline.motion.hands import hand_shapes
+
+    if clip.hands is None:
+        return None, None
+    return hand_shapes(clip.hands_world, clip.hands[:, :, 0, 2])
+
+
 def lift_segment(models: LiftModels, job: LiftJob) -> dict:
     """All clips of a segment in one ONNX call; writes the segment's 3D motion table."""
     from pipeline.annotate.clipfile import read_clean
@@ -185,7 +195,8 @@ def lift_segment(models: LiftModels, job: LiftJob) -> dict:
     lifted = lift_clips(models, [c.keypoints for c in clean.clips], [c.feet for c in clean.clips],
                         clean.segment.width, clean.segment.height, clean.segment.fps, job.min_score, job.flip)
     clips = [MotionClip(c.clip_id, c.track_id, c.frame.astype(np.int32), clean.time(c), lc.joints,
-                        c.interpolated, lc.filled.sum(1).astype(np.int8), lc.root, lc.feet, lc.contact, lc.feet_rays)
+                        c.interpolated, lc.filled.sum(1).astype(np.int8), lc.root, lc.feet, lc.contact, lc.feet_rays,
+                        *clip_hands(c))
              for c, lc in zip(clean.clips, lifted)]
     segment = {"segment_id": clean.segment.segment_id, "fps": clean.segment.fps, "width": clean.segment.width,
                "height": clean.segment.height}

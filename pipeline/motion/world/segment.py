@@ -30,7 +30,8 @@ def ground_segment(job: GroundJob) -> dict:
     motion = read_motion(job.motion24)
     scene = ground_scene(motion.clips, motion.fps, threshold=job.contact_threshold,
                          min_frames=job.min_contact_frames, hold=job.contact_hold)
-    clips = [world_clip(clip.clip_id, clip.track_id, clip.frame, clip.time, grounded, scale)
+    clips = [world_clip(clip.clip_id, clip.track_id, clip.frame, clip.time, grounded, scale, clip.hands,
+                        clip.hand_presence)
              for clip, grounded, scale in zip(motion.clips, scene.clips, scene.scales)]
     segment = {k: motion.meta.get(k) for k in ("segment_id", "fps", "source_fps", "width", "height")}
     segment["scene"] = {"pitch_deg": round(scene.frame.camera.pitch_deg, 2),

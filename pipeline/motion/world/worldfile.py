@@ -9,7 +9,9 @@ contact (left, right foot on the floor), planted (each foot point planted), cont
 (the contact model's; NaN without one), rotations_6d (local joint rotations on the clip's
 skeleton, ``rotations.BVH_JOINTS`` order), smpl_poses and smpl_trans (the same motion on the SMPL
 tree, ``pipeline.motion.smpl.retarget``: 24 local rotations as axis-angle, the pelvis joint's path;
-schema 3).
+schema 3), and where pose2d found hands, hands (left, right hand's 21 points in the world, hung on
+the wrists, one hand skeleton per clip: ``pipeline.motion.hands.world_hands``; NaN for a hand never
+seen in the clip) and hand_presence (the hand model's, per hand and frame; schema 4).
 
 Per clip, in the file's metadata (``clips``): bone_lengths, camera pitch and roll, the largest
 limb-length CV before the one skeleton and how far it moved the joints, skating before and after
@@ -31,7 +33,7 @@ import pyarrow.parquet as pq
 from pipeline.core.storage import column_array, fixed_list, require_schema, write_parquet
 from pipeline.motion.world.grounding import ROTATION_JOINTS, GroundedClip
 
-SCHEMA_VERSION = 3  # 3: smpl_poses, smpl_trans and the clip's smpl_scaling
+SCHEMA_VERSION = 4  # 3: smpl_poses, smpl_trans and the clip's smpl_scaling; 4: hands, hand_presence
 ROTATIONS = len(ROTATION_JOINTS)
 WORLD_SCHEMA = pa.schema([
     ("clip_id", pa.string()),
@@ -47,6 +49,8 @@ WORLD_SCHEMA = pa.schema([
     ("smpl_poses", pa.list_(pa.float32(), 72)),
     ("smpl_trans", pa.list_(pa.float32(), 3)),
 ])
+HANDS_FIELDS = [pa.field("hands", pa.list_(pa.float32(), 2 * 21 * 3)),
+                pa.field("hand_presence", pa.list_(pa.float32(), 2))]
 
 
 @dataclass(frozen=True)
@@ -64,11 +68,16 @@ class WorldClip:
     facts: dict                       # bone_lengths, pitch_deg, roll_deg, cv_before, fit_moved_mm, ...
     smpl_poses: np.ndarray | None = None   # n x 72 axis-angle on the SMPL tree (None: not retargeted)
     smpl_trans: np.ndarray | None = None   # n x 3 its pelvis joint (facts["smpl_scaling"]: its scale)
+    hands: np.ndarray | None = None        # n x 2 x 21 x 3 world hands (None: not asked for; NaN: never seen)
+    hand_presence: np.ndarray | None = None  # n x 2
 
 
 def world_clip(clip_id: str, track_id: int, frame: np.ndarray, time: np.ndarray, grounded: GroundedClip,
-               scene_scale: float = 1.0) -> WorldClip:
-    """A grounded clip as the world file stores it, retargeted onto the SMPL tree."""
+               scene_scale: float = 1.0, hands: np.ndarray | None = None,
+               hand_presence: np.ndarray | None = None) -> WorldClip:
+    """A grounded clip as the world file stores it, retargeted onto the SMPL tree; with the motion's
+    wrist-relative ``hands`` (and their presence), its hands in the world."""
+    from pipeline.motion.hands import H36M_WRISTS, world_hands
     from pipeline.motion.smpl.retarget import retarget
 
     smpl = retarget(grounded.joints, grounded.feet)
@@ -79,9 +88,11 @@ def world_clip(clip_id: str, track_id: int, frame: np.ndarray, time: np.ndarray,
              "contact_learned": grounded.planted is not None,
              "skate_before_m_s": round(grounded.skate_before, 5), "skate_after_m_s": round(grounded.skate_after, 5),
              "scene_scale": round(float(scene_scale), 4), "smpl_scaling": round(smpl.scale, 6)}
+    if hands is not None:
+        hands = world_hands(hands, hand_presence, grounded.camera.rotation, grounded.joints[:, list(H36M_WRISTS)])
     return WorldClip(clip_id, track_id, frame, time, grounded.joints, grounded.feet, grounded.contact,
                      grounded.planted, grounded.contact_probability, grounded.rotations_6d, facts,
-                     smpl.poses, smpl.trans)
+                     smpl.poses, smpl.trans, hands, hand_presence)
 
 
 def _table(clips: list[WorldClip]) -> pa.Table:
@@ -92,7 +103,7 @@ def _table(clips: list[WorldClip]) -> pa.Table:
         return np.concatenate([v.reshape(len(c.frame), -1) if v is not None
                                else np.full((len(c.frame), int(np.prod(shape))), fill) for c, v in zip(clips, values)])
 
-    return pa.Table.from_arrays([
+    table = pa.Table.from_arrays([
         pa.array(np.concatenate([[c.clip_id] * len(c.frame) for c in clips]), pa.string()),
         pa.array(np.concatenate([np.full(len(c.frame), c.track_id) for c in clips]), pa.int32()),
         pa.array(np.concatenate([c.frame for c in clips]), pa.int32()),
@@ -107,6 +118,10 @@ def _table(clips: list[WorldClip]) -> pa.Table:
         fixed_list(cat([c.smpl_poses for c in clips], (72,))),
         fixed_list(cat([c.smpl_trans for c in clips], (3,))),
     ], schema=WORLD_SCHEMA)
+    if clips[0].hands is None:  # a segment's clips all have hands, or none has
+        return table
+    table = table.append_column(HANDS_FIELDS[0], fixed_list(cat([c.hands for c in clips], (2 * 21 * 3,))))
+    return table.append_column(HANDS_FIELDS[1], fixed_list(cat([c.hand_presence for c in clips], (2,))))
 
 
 def write_world(path: Path, clips: list[WorldClip], segment_meta: Mapping[str, Any], *, fingerprint: str,
@@ -129,6 +144,10 @@ def read_world(path: Path) -> list[WorldClip]:
             "prob": column_array(table, "contact_probability", (4,)),
             "rot": column_array(table, "rotations_6d", (ROTATIONS, 6)),
             "poses": column_array(table, "smpl_poses", (72,)), "trans": column_array(table, "smpl_trans", (3,))}
+    hands = {}
+    if "hands" in table.column_names:
+        hands = {"hands": column_array(table, "hands", (2, 21, 3)),
+                 "hand_presence": column_array(table, "hand_presence", (2,))}
     clips = []
     for clip_id in dict.fromkeys(ids):
         rows = np.flatnonzero(ids == clip_id)
@@ -138,6 +157,7 @@ def read_world(path: Path) -> list[WorldClip]:
         planted = cols["planted"][rows].astype(bool) if facts.get("contact_learned") else None
         clips.append(WorldClip(str(clip_id), int(cols["track"][rows[0]]), cols["frame"][rows], cols["time"][rows],
                                cols["joints"][rows], feet, cols["contact"][rows].astype(bool), planted, prob,
-                               cols["rot"][rows], facts, cols["poses"][rows], cols["trans"][rows]))
+                               cols["rot"][rows], facts, cols["poses"][rows], cols["trans"][rows],
+                               **{name: values[rows] for name, values in hands.items()}))
     return clips
 

@@ -1,0 +1,120 @@
+"""Hands in 3D: the hand model's metric hand, wrist-relative through the motion files, one hand
+skeleton per clip, hung on the world wrist; and the corpus columns that carry it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from pipeline.motion.hands import HAND_PARENTS, fit_hand_skeleton, hand_shapes, world_hands
+
+
+def _hand(frames: int, seed: int = 0) -> np.ndarray:
+    """A hand (T x 21 x 3, metres about its centre) whose fingers curl over time."""
+    rng = np.random.default_rng(seed)
+    rest = np.zeros((21, 3))
+    for child, parent in enumerate(HAND_PARENTS[1:], start=1):
+        rest[child] = rest[parent] + [0.01 * (child % 4 - 1.5), -0.025, 0.0]
+    curl = np.linspace(0, 0.02, frames)[:, None, None] * (np.arange(21) % 4)[None, :, None] * [0, 0, 1]
+    return rest[None] + curl + rng.normal(0, 1e-4, (frames, 21, 3)) + [0.01, 0.02, 0.0]
+
+
+def _bone_lengths(points: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(points[..., 1:, :] - points[..., list(HAND_PARENTS[1:]), :], axis=-1)
+
+
+def test_a_hands_shape_is_wrist_relative_and_drawn_between_sure_frames_where_the_model_is_unsure() -> None:
+    world = np.stack([_hand(5), _hand(5, 1)], 1)  # T x 2 x 21 x 3
+    presence = np.array([[0.9, 0.1], [0.2, 0.1], [0.9, 0.2], [0.9, 0.3], [0.1, 0.1]], np.float32)
+    shapes, kept = hand_shapes(world, presence)
+    assert np.allclose(shapes[:, :, 0], 0.0)                        # the wrist at the origin
+    left = world[:, 0] - world[:, 0, :1]
+    assert np.allclose(shapes[[0, 2, 3], 0], left[[0, 2, 3]], atol=1e-6)  # sure frames as the model gave them
+    assert np.allclose(shapes[1, 0], (left[0] + left[2]) / 2, atol=1e-6)  # unsure: halfway between sure ones
+    assert np.allclose(shapes[4, 0], left[3], atol=1e-6)                  # ... held after the last
+    assert (shapes[:, 1] == 0).all() and np.array_equal(kept, presence)  # never sure: no shape, presence says so
+
+
+def test_one_hand_skeleton_per_clip_keeps_each_bones_direction_at_its_median_length() -> None:
+    hand = _hand(30) - _hand(30)[:, :1]
+    hand[10:20] *= 1.3  # the model's scale wanders on some frames
+    presence = np.full(30, 0.9)
+    fitted = fit_hand_skeleton(hand, presence)
+    lengths = _bone_lengths(fitted)
+    assert np.allclose(lengths, lengths[0], atol=1e-9)  # one length per bone over the clip
+    assert np.allclose(lengths[0], np.median(_bone_lengths(hand), 0))
+    bones = fitted[:, 1:] - fitted[:, list(HAND_PARENTS[1:])]
+    raw = hand[:, 1:] - hand[:, list(HAND_PARENTS[1:])]
+    cosine = (bones * raw).sum(-1) / np.linalg.norm(bones, axis=-1) / np.linalg.norm(raw, axis=-1)
+    assert cosine.min() > 0.999999
+
+
+def test_world_hands_hang_on_the_world_wrists_turned_by_the_camera_and_are_nan_where_never_seen() -> None:
+    t = 6
+    shapes = np.stack([_hand(t), _hand(t, 1)], 1)
+    shapes -= shapes[:, :, :1]
+    presence = np.column_stack([np.full(t, 0.9), np.full(t, 0.1)])
+    turn = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])  # camera (y down) -> world (y up)
+    wrists = np.random.default_rng(2).normal(size=(t, 2, 3))
+    world = world_hands(shapes, presence, turn, wrists)
+    assert np.allclose(world[:, 0, 0], wrists[:, 0], atol=1e-6)
+    assert (world[:, 0, 12, 1] > world[:, 0, 0, 1]).all()  # fingers up the image (y down there): up in the world
+    assert np.isnan(world[:, 1]).all()
+
+
+def test_the_corpus_carries_world_hands_and_their_confidence_or_nan_without_hands() -> None:
+    from pipeline.corpus.windows import Window, windows_table
+
+    w = 4
+    base = dict(meta={}, motion=np.zeros((w, 17, 3)), mfcc=np.zeros((w, 39)), chroma=np.zeros((w, 12)),
+                onset=np.zeros(w), beat=np.zeros(w))
+    hands = np.random.default_rng(0).normal(size=(w, 2, 21, 3))
+    confidence = np.full((w, 2), 0.7)
+    meta = {"window_id": "a", "split": "train", "video_id": "v", "url": "", "title": "", "channel": "", "style": "",
+            "tags": [], "licence": "", "segment_id": "s", "clip_id": "c", "track_id": 1, "group_window_id": "",
+            "start_frame": 0, "start_time": 0.0, "segment_start": 0.0, "tempo": 120.0}
+    with_hands = Window(**{**base, "meta": meta}, world_hands=hands, hand_confidence=confidence)
+    without = Window(**{**base, "meta": {**meta, "window_id": "b"}})
+    table = windows_table([with_hands, without], w)
+    got = np.array(table.column("world_hands").to_pylist(), np.float64)
+    assert got.shape == (2, w, 2, 21, 3)
+    assert np.allclose(got[0], hands, atol=1e-6) and np.isnan(got[1]).all()
+    assert np.allclose(table.column("hand_confidence").to_pylist()[0], confidence)
+
+
+def test_the_stages_carry_the_dancers_hands_from_2d_into_the_world_on_her_wrists(
+        project: Path, dance_clip: Path, hand_model: Path, models_dir: Path, monkeypatch, tmp_path: Path) -> None:
+    from pipeline.motion.hands import H36M_WRISTS
+    from pipeline.motion.motionfile import read_motion
+    from pipeline.motion.world.worldfile import read_world
+    from pipeline.pose.trackfile import read_tracks
+    from tests.conftest import PROJECT, ffmpeg, run_stages, set_params, write_sources
+
+    monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
+    (project / "models").mkdir()
+    (project / "models" / hand_model.name).symlink_to(hand_model)
+    clip = tmp_path / "clip.mp4"  # 3 s: her right hand comes up to her chin, her left to her hip
+    ffmpeg("-ss", "2", "-t", "3", "-i", str(dance_clip), "-vf", "scale=540:960", "-c:v", "libx264", str(clip))
+    write_sources(project, [("solo", clip)])
+    (project / "annotations/segments.csv").write_text("video_id,start,end\nsolo,0,3\n")
+    set_params(project, "pose2d", hands=True)
+    set_params(project, "lift", model=str(PROJECT / "pipeline/motion/lifting/weights/lifter_dance3d.onnx"),
+               contact_model=str(PROJECT / "pipeline/motion/world/weights/contact_dance3d.onnx"))
+    run_stages(project, "download", "trim", "pose2d", "track")
+    (project / "manifests/tracks").mkdir()
+    tracks = read_tracks(project / "data/tracks/solo_000.parquet")
+    (project / "manifests/tracks/solo_000.csv").write_text(  # the annotator keeps her
+        "track_id,start,end,keep,note,frames,mean_score,box_height,motion,reason\n"
+        + "".join(f"{t},{tracks.time[tracks.of(t)][0]:.3f},{tracks.time[tracks.of(t)][-1]:.3f},yes,,,,,,\n"
+                  for t in tracks.ids))
+    run_stages(project, "clean", "lift", "smooth", "resample", "ground")
+    motion, = read_motion(project / "data/motion24/solo_000.parquet").clips
+    assert motion.hands.shape == (len(motion.frame), 2, 21, 3) and np.allclose(motion.hands[:, :, 0], 0, atol=1e-6)
+    world, = read_world(project / "data/world/solo_000.parquet")
+    sure = world.hand_presence >= 0.5
+    assert sure[:, 0].mean() > 0.2 and sure[:, 1].mean() > 0.2
+    assert np.allclose(world.hands[:, :, 0], world.joints[:, list(H36M_WRISTS)], atol=1e-5)  # on her wrists
+    lengths = _bone_lengths(world.hands)  # T x 2 x 20: one hand skeleton per clip
+    assert np.ptp(lengths, axis=0).max() < 1e-5
+    assert 0.06 < np.linalg.norm(world.hands[0, :, 12] - world.hands[0, :, 0], axis=-1).min() < 0.25  # a hand's size
