@@ -66,8 +66,8 @@ def apply_manifest(tracks: SegmentTracks, spans: list[Span], opts: CleanOptions)
             mask = ~np.isin(full, f)
             interpolated += int(mask.sum())
             picked = rows[piece]
-            hands = {} if tracks.hands is None else {"hands": _fill(f, tracks.hands[picked], full),
-                                                     "hands_world": _fill(f, tracks.hands_world[picked], full)}
+            hands = {} if tracks.hands is None else {"hands_world": _fill(f, tracks.hands_world[picked], full),
+                                                     "hand_presence": _fill(f, tracks.hands[picked, :, 0, 2], full)}
             clips.append(Clip(f"{tracks.segment_id}_{span.track_id}_{k}", span.track_id, full,
                               _fill(f, tracks.box[picked], full), _fill(f, tracks.keypoints[picked], full), mask,
                               _fill(f, tracks.feet[picked], full), **hands))

@@ -3,8 +3,9 @@
 One row per clip frame: clip_id (``<segment_id>_<track_id>_<k>``), track_id, frame
 (contiguous within a clip), time (frame / fps, segment clock), box, keypoints (COCO-17
 x, y, score), feet (as in the pose2d table), interpolated (the frame was a gap filled by
-interpolation), and where pose2d found hands (``pose2d.hands``) hands and hands_world (as in the
-pose2d table; schema 4). Metadata: the segment, whether spans came from a manifest or a proposal, and how
+interpolation), and where pose2d found hands (``pose2d.hands``) hands_world (as in the pose2d
+table) and hand_presence (each hand's presence: its 2D points are not carried, nothing after
+clean reads them; schema 4). Metadata: the segment, whether spans came from a manifest or a proposal, and how
 many clips were too short to keep.
 """
 
@@ -20,8 +21,10 @@ import pyarrow as pa
 from pipeline.core.storage import column_array, fixed_list, read_file_table, read_meta, write_parquet
 from pipeline.pose.pose2dfile import FEET, HAND_POINTS, HANDS_FIELDS, KEYPOINTS, SegmentInfo
 
+HAND_FIELDS = [HANDS_FIELDS[1], pa.field("hand_presence", pa.list_(pa.float32(), 2))]
+
 SCHEMA_VERSION = 4  # 2: feet and world, carried from pose2d; 3: no world (two thirds of the file, never read);
-                    # 4: hands and hands_world, where pose2d has them
+                    # 4: hands_world and hand_presence, where pose2d has hands
 CLEAN_SCHEMA = pa.schema(
     [
         ("clip_id", pa.string()),
@@ -45,8 +48,8 @@ class Clip:
     keypoints: np.ndarray     # n x 17 x 3
     interpolated: np.ndarray  # n bool
     feet: np.ndarray          # n x 4 x 3: heels and toes (score 0: none)
-    hands: np.ndarray | None = None        # n x 2 x 21 x 3: left, right hand (x, y, presence; None: not asked for)
-    hands_world: np.ndarray | None = None  # n x 2 x 21 x 3: metres about each hand
+    hands_world: np.ndarray | None = None    # n x 2 x 21 x 3: left, right hand, metres about it (None: not asked for)
+    hand_presence: np.ndarray | None = None  # n x 2: the hand model's presence
 
 
 @dataclass(frozen=True)
@@ -76,11 +79,11 @@ def clips_table(clips: list[Clip], fps: float) -> pa.Table:
         pa.array(np.concatenate([c.interpolated for c in clips]), pa.bool_()),
         fixed_list(np.concatenate([c.feet for c in clips]).reshape(-1, FEET * 3)),
     ], schema=CLEAN_SCHEMA)
-    if clips[0].hands is None:  # a segment's clips all have hands, or none has
+    if clips[0].hands_world is None:  # a segment's clips all have hands, or none has
         return table
-    for field in HANDS_FIELDS:
-        values = np.concatenate([getattr(c, field.name) for c in clips]).reshape(-1, 2 * HAND_POINTS * 3)
-        table = table.append_column(field, fixed_list(values))
+    for field, width in zip(HAND_FIELDS, (2 * HAND_POINTS * 3, 2)):
+        table = table.append_column(field, fixed_list(np.concatenate([getattr(c, field.name) for c in clips])
+                                                      .reshape(-1, width)))
     return table
 
 
@@ -102,7 +105,7 @@ def read_clean(path: Path) -> CleanFile:
     kps = column_array(table, "keypoints", (KEYPOINTS, 3))
     interp = column_array(table, "interpolated").astype(bool)
     feet = column_array(table, "feet", (FEET, 3))  # a schema-2 file's world column is left unread
-    hands = {f.name: column_array(table, f.name, (2, HAND_POINTS, 3)) for f in HANDS_FIELDS
+    hands = {f.name: column_array(table, f.name, shape) for f, shape in zip(HAND_FIELDS, ((2, HAND_POINTS, 3), (2,)))
              if f.name in table.column_names}
     clips = []
     for clip_id in dict.fromkeys(ids):  # file order

@@ -181,9 +181,9 @@ def clip_hands(clip) -> tuple[np.ndarray | None, np.ndarray | None]:
     wrist-relative metric shapes and each hand's presence; (None, None) without hands."""
     from pipeline.motion.hands import hand_shapes
 
-    if clip.hands is None:
+    if clip.hands_world is None:
         return None, None
-    return hand_shapes(clip.hands_world, clip.hands[:, :, 0, 2])
+    return hand_shapes(clip.hands_world, clip.hand_presence)
 
 
 def lift_segment(models: LiftModels, job: LiftJob) -> dict:
