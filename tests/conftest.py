@@ -173,6 +173,12 @@ def hand_model() -> Path:
 
 
 @pytest.fixture(scope="session")
+def hand_recrop_model() -> Path:
+    """MediaPipe Holistic's hand re-crop model, from the pinned mediapipe wheel."""
+    return _fetched("hand-recrop")
+
+
+@pytest.fixture(scope="session")
 def palm_model() -> Path:
     """MediaPipe's palm detector, from the pinned mediapipe wheel: `eval hands`'s peer."""
     return _fetched("palm-detection-full")

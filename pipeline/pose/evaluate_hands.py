@@ -4,10 +4,11 @@ Annotations (``hand_eval``'s layout): ``{"keypoint_order": [21 names], "images":
 "hands": [{"side": "left" | "right" | null, "bbox": [x, y, w, h], "keypoints": [[x, y, v] x 21],
 "keypoints_3d": [[x, y, z] x 21] | null, "units_3d": "mm" | null}]}]}``; a joint with v = 0 is not labelled.
 
-Regions (``regions``): ``body``, as pose2d will find hands: the pose2d stage's detector and body
-model on the whole image, a region beyond each confident wrist along its forearm, the hand model
-there; each annotated hand is matched to the nearest hand found on its side. An image where no
-person is found is taken as a crop around one hand (the hand-only datasets: a body cannot be seen
+Regions (``regions``): ``body``, as pose2d finds hands (``hands.body_hands``): the pose2d stage's
+detector and body model on the whole image, a region beyond each confident wrist along its forearm
+(refined by Holistic's re-crop model with ``pose2d.hand_recrop``), the hand model there; each
+annotated hand is matched to the nearest hand found on its side. An image where no person is found
+is taken as a crop around one hand (the hand-only datasets: a body cannot be seen
 there), its side the model's handedness. ``palm``: MediaPipe's own hand pipeline as the peer
 (``palms.py``: its palm detector on the whole image, the landmark model once in each palm's
 region). ``body+palm`` (the command's default): both, the surer of two hands on one spot kept
@@ -29,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.core.errors import InputError
-from pipeline.pose.hands import HAND_JOINTS, SIDES, Hand, HandLandmarks, body_hands, region_from_box
+from pipeline.pose.hands import HAND_JOINTS, SIDES, Hand, HandLandmarks, HandRecrop, body_hands, region_from_box
 
 PCK_SHARE = 0.2
 
@@ -59,7 +60,8 @@ def read_hand_annotations(path: Path) -> list[dict]:
     return data["images"]
 
 
-def people_hands(image: np.ndarray, detector, pose, opts, landmarks: HandLandmarks) -> list[tuple[str, Hand]]:
+def people_hands(image: np.ndarray, detector, pose, opts, landmarks: HandLandmarks,
+                 recrop: HandRecrop | None = None) -> list[tuple[str, Hand]]:
     """(side, hand) of every person the pose2d rules find, as pose2d finds them (``hands.body_hands``);
     with no person, the hand the whole image holds (a crop around one hand)."""
     from dataclasses import replace
@@ -71,7 +73,7 @@ def people_hands(image: np.ndarray, detector, pose, opts, landmarks: HandLandmar
         height, width = image.shape[:2]
         hand = landmarks.estimate(image, region_from_box(np.array([0, 0, width, height]), landmarks.size, 1.0))
         return [("right" if hand.right >= 0.5 else "left", hand)]
-    return [(side, hand) for pair in body_hands(landmarks, image, batch.keypoints, opts.hand_passes)
+    return [(side, hand) for pair in body_hands(landmarks, image, batch.keypoints, opts.hand_passes, recrop=recrop)
             for side, hand in zip(SIDES, pair) if hand is not None]
 
 
@@ -159,13 +161,16 @@ def load_models(root: Path, params: dict, regions: str) -> dict:
     if "palm" in regions:
         models["palms"] = PalmDetector(create_session(resolve_model("palm-detection-full", root)))
     if "body" in regions:
-        pose_models = load_pose_models(worker_files(root, params))
+        pose_models = load_pose_models(worker_files(root, {**params, "hands": False}))
         models["body"] = (pose_models.detector, pose_models.pose)
+        if models["opts"].hand_recrop:
+            models["recrop"] = HandRecrop(create_session(resolve_model("hand-recrop", root)))
     return models
 
 
 def evaluate_hands(annotations: Path, images: Path, landmarks: HandLandmarks, *, regions: str = "body",
-                   body=None, opts=None, palms=None, min_presence: float = 0.5, describe: dict | None = None) -> dict:
+                   body=None, opts=None, palms=None, recrop: HandRecrop | None = None, min_presence: float = 0.5,
+                   describe: dict | None = None) -> dict:
     """Per dataset and over all (see the module's docstring); ``body`` is (detector, pose) for ``body``,
     ``palms`` a ``palms.PalmDetector`` for ``palm``."""
     import cv2
@@ -184,10 +189,10 @@ def evaluate_hands(annotations: Path, images: Path, landmarks: HandLandmarks, *,
         elif regions == "palm":
             matched = _match(truth, palm_hands(image, palms, landmarks))
         elif regions == "body+palm":
-            matched = _match(truth, fused_hands(people_hands(image, *body, opts, landmarks),
+            matched = _match(truth, fused_hands(people_hands(image, *body, opts, landmarks, recrop),
                                                 palm_hands(image, palms, landmarks)))
         else:
-            matched = _match(truth, people_hands(image, *body, opts, landmarks))
+            matched = _match(truth, people_hands(image, *body, opts, landmarks, recrop))
         rows.setdefault(entry.get("dataset", ""), []).extend(
             _score(h, m, min_presence) for h, m in zip(truth, matched))
     result = {"regions": regions, "pck_share": PCK_SHARE, "min_presence": min_presence,

@@ -33,6 +33,9 @@ MIN_WRIST_SCORE = 0.3
 # A region under this side (pixels) holds a hand under about 10 px: the model sees a blur there
 # (hand_eval's 13-31 px hands of whole people: presence under 0.5 on 11 of 13, docs/reports/hands.md).
 MIN_REGION_PX = 20.0
+MIN_PRESENCE = 0.5  # MediaPipe's threshold: a hand the model is sure of
+MAX_WRIST_OFFSET = 0.5  # a hand whose wrist lies farther than this (forearms) from the body's is another's
+SEARCH_PER_FOREARM = 1.8  # the re-crop model's search region: about 2.6 hand lengths, as Holistic's from the pose
 
 
 @dataclass(frozen=True)
@@ -79,6 +82,35 @@ class HandLandmarks:
         return hand
 
 
+class HandRecrop:
+    """MediaPipe Holistic's hand re-crop model: in a search region around a hand (NHWC RGB [0, 1]
+    256 x 256) it gives two points, the hand's centre and a point that sets its size and turn, from
+    which Holistic takes the region it gives the landmark model (``refine``)."""
+
+    def __init__(self, session, size: int = 256) -> None:
+        self.session, self.size = session, size
+        self.input_name = session.get_inputs()[0].name
+
+    def points(self, image: np.ndarray, region: np.ndarray) -> np.ndarray:
+        """(2 x 2) the centre and the scale point, image pixels, in ``region`` (2 x 3 onto the model's square)."""
+        crop = warp(image, region, self.size, self.size)[..., ::-1].astype(np.float32) / 255.0
+        out = self.session.run(None, {self.input_name: crop[None]})[0]
+        return to_image(np.asarray(out, np.float64).reshape(2, 2), region)
+
+    def refine(self, image: np.ndarray, region: np.ndarray, size: int = 224) -> np.ndarray | None:
+        """The landmark model's region: a square centred on the first point, as wide as twice its
+        distance to the second, turned so the second lies below the first (towards the wrist), moved a
+        tenth of its side towards the fingers (Holistic's graph); None when the points coincide."""
+        centre, scale = self.points(image, region)
+        down = scale - centre
+        half = float(np.hypot(*down))
+        if half < 0.5:
+            return None
+        up = -down / half
+        centre = centre + 0.1 * 2 * half * up
+        return roi_transform(centre, centre + up * half, size, 1.0)
+
+
 def region_from_box(box: np.ndarray, size: int = 224, scale: float = 2.0) -> np.ndarray:
     """An upright square on a hand's box (x, y, w, h), ``scale`` times its longer side."""
     x, y, w, h = (float(v) for v in box)
@@ -86,16 +118,17 @@ def region_from_box(box: np.ndarray, size: int = 224, scale: float = 2.0) -> np.
     return roi_transform(centre, centre - [0.0, max(w, h) / 2], size, scale)
 
 
-def region_from_forearm(elbow: np.ndarray, wrist: np.ndarray, size: int = 224) -> np.ndarray | None:
-    """The square where the hand beyond ``wrist`` lies, turned so the forearm points up (None for a
-    forearm shorter than a pixel)."""
+def region_from_forearm(elbow: np.ndarray, wrist: np.ndarray, size: int = 224,
+                        side_per_forearm: float = SIDE_PER_FOREARM) -> np.ndarray | None:
+    """The square where the hand beyond ``wrist`` lies, ``side_per_forearm`` forearms wide, turned so
+    the forearm points up (None for a forearm shorter than a pixel)."""
     elbow, wrist = np.asarray(elbow, np.float64)[:2], np.asarray(wrist, np.float64)[:2]
     forearm = wrist - elbow
     length = float(np.hypot(*forearm))
     if length < 1.0:
         return None
     centre = wrist + CENTRE_BEYOND_WRIST * forearm
-    return roi_transform(centre, centre + forearm / length * (SIDE_PER_FOREARM * length / 2), size, 1.0)
+    return roi_transform(centre, centre + forearm / length * (side_per_forearm * length / 2), size, 1.0)
 
 
 def region_from_landmarks(points: np.ndarray, size: int = 224, scale: float = 2.0) -> np.ndarray:
@@ -113,11 +146,26 @@ def region_from_landmarks(points: np.ndarray, size: int = 224, scale: float = 2.
     return roi_transform(centre, centre + up * max(half, 0.5), size, scale)
 
 
+@dataclass(frozen=True)
+class HandModels:
+    """The models pose2d finds a posed person's hands with: the landmark model, and Holistic's
+    re-crop model for its region (``pose2d.hand_recrop``; None: the forearm's square as it is)."""
+
+    landmarks: HandLandmarks
+    recrop: HandRecrop | None = None
+
+    def find(self, image: np.ndarray, keypoints: np.ndarray, passes: int = 2) -> list[tuple[Hand | None, Hand | None]]:
+        return body_hands(self.landmarks, image, keypoints, passes, recrop=self.recrop)
+
+
 def body_hands(landmarks: HandLandmarks, image: np.ndarray, keypoints: np.ndarray, passes: int = 2,
-               min_wrist_score: float = MIN_WRIST_SCORE) -> list[tuple[Hand | None, Hand | None]]:
+               min_wrist_score: float = MIN_WRIST_SCORE, recrop: "HandRecrop | None" = None,
+               search_per_forearm: float = SEARCH_PER_FOREARM) -> list[tuple[Hand | None, Hand | None]]:
     """Each posed person's (left, right) hand, from COCO-17 ``keypoints`` (N x 17 x 3): the hand model
-    in the region beyond each wrist along its forearm; None (not looked at) where the elbow or wrist
-    is under ``min_wrist_score``, the region is under ``MIN_REGION_PX`` or its centre is off the picture."""
+    in the region beyond each wrist along its forearm, or, with ``recrop``, in the region the re-crop
+    model finds in a wider square there (``search_per_forearm`` forearms: about the search region
+    Holistic takes from the pose); None (not looked at) where the elbow or wrist is under
+    ``min_wrist_score``, the hand's square is under ``MIN_REGION_PX`` or its centre is off the picture."""
     height, width = image.shape[:2]
     found = []
     for person in np.asarray(keypoints, np.float64).reshape(-1, 17, 3):
@@ -130,9 +178,25 @@ def body_hands(landmarks: HandLandmarks, image: np.ndarray, keypoints: np.ndarra
                 on_picture = 0 <= centre[0] < width and 0 <= centre[1] < height
                 if on_picture and SIDE_PER_FOREARM * np.hypot(*forearm) >= MIN_REGION_PX:
                     region = region_from_forearm(person[elbow], person[wrist], landmarks.size)
-            pair.append(landmarks.estimate(image, region, passes) if region is not None else None)
+            hand = None
+            if region is not None and recrop is not None:  # Holistic's way: a wider search region, the
+                search = region_from_forearm(person[elbow], person[wrist], recrop.size, search_per_forearm)
+                refined = recrop.refine(image, search, landmarks.size) if search is not None else None
+                hand = landmarks.estimate(image, refined, passes) if refined is not None else None
+                # ... but a wider region may hold the other hand: the hand found must hang on this wrist
+                if hand is not None and not on_wrist(hand, person[elbow, :2], person[wrist, :2]):
+                    hand = None
+            if region is not None and (hand is None or hand.presence < MIN_PRESENCE):  # the forearm's square too
+                plain = landmarks.estimate(image, region, passes)
+                hand = plain if hand is None or plain.presence > hand.presence else hand
+            pair.append(hand)
         found.append((pair[0], pair[1]))
     return found
+
+
+def on_wrist(hand: Hand, elbow: np.ndarray, wrist: np.ndarray, within: float = MAX_WRIST_OFFSET) -> bool:
+    """Whether ``hand``'s wrist lies within ``within`` forearms (elbow -> wrist) of the body's wrist."""
+    return bool(np.hypot(*(hand.keypoints[WRIST, :2] - wrist)) <= within * np.hypot(*(wrist - elbow)))
 
 
 def hands_array(hands: list[tuple[Hand | None, Hand | None]]) -> tuple[np.ndarray, np.ndarray]:

@@ -31,7 +31,7 @@ import numpy as np
 from pipeline.core.threads import threaded
 from pipeline.ingest.media import Frame
 from pipeline.ingest.segmentvideo import SegmentVideo, frames_of
-from pipeline.pose.hands import HandLandmarks, body_hands, hands_array
+from pipeline.pose.hands import HandModels, hands_array
 from pipeline.pose.keyframes import drawn_boxes, held, in_between, keyframe_step, newcomers, people_change
 from pipeline.pose.models.detector import Detections, FusedDetector, PicoDetDetector, RTMDetDetector, largest
 from pipeline.pose.models.pose import BlazePose, BodyAndFeet, MoveNetPose, PoseBatch, RTMPose, TinyPose
@@ -66,12 +66,14 @@ class Pose2dOptions:
     dark_mean: float = 40.0        # frames darker than this mean pixel value are brightened (0: never)
     hands: bool = False            # 21 points per hand of every posed person (hands.body_hands)
     hand_passes: int = 2           # the hand model's passes: the forearm's region, then the hand's own
+    hand_recrop: bool = True       # the forearm's region refined by Holistic's re-crop model first
 
     @staticmethod
     def from_params(params: dict) -> "Pose2dOptions":
         names = ("top_k", "fps", "det_every", "det_score", "confirm_score", "confirm_joints", "confirm_joint_score",
                  "confirm_min_height", "confirm_min_share", "min_joints", "dark_mean", "redetect_overlap",
-                 "redetect_joints", "carry_framed", "pose_changes", "changes_only", "hands", "hand_passes")
+                 "redetect_joints", "carry_framed", "pose_changes", "changes_only", "hands", "hand_passes",
+                 "hand_recrop")
         fields = {f: type(getattr(Pose2dOptions, f)) for f in names}
         return Pose2dOptions(**{f: kind(params[f]) for f, kind in fields.items() if f in params})
 
@@ -259,10 +261,10 @@ def carried_boxes(keypoints: np.ndarray, width: int, height: int, min_score: flo
 
 
 def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opts: Pose2dOptions,
-                     span: tuple[int, int] | None = None, hands: HandLandmarks | None = None) -> Iterator[FramePoses]:
+                     span: tuple[int, int] | None = None, hands: HandModels | None = None) -> Iterator[FramePoses]:
     """Yield the poses of every frame of ``video`` (a segment view or a video file), in order;
     ``span``: only a segment view's frames first to end - 1 (a part, ``parts.plan_parts``); with
-    ``hands`` (the hand model), every posed person's hands too.
+    ``hands`` (the hand models), every posed person's hands too.
 
     The models pose every ``keyframe_step``-th frame (and a segment's or a part's last); the frames
     between are decoded but not converted, and come out interpolated once the next keyframe is
@@ -366,7 +368,7 @@ def estimate_segment(video: Path | SegmentVideo, fps: float, detector, pose, opt
     def with_hands(posed: FramePoses, image: np.ndarray) -> FramePoses:
         if hands is None:
             return posed
-        points, world = hands_array(body_hands(hands, image, posed.keypoints, opts.hand_passes))
+        points, world = hands_array(hands.find(image, posed.keypoints, opts.hand_passes))
         return dataclasses.replace(posed, hands=points, hands_world=world)
 
     try:
@@ -474,7 +476,7 @@ def collect_poses(frames: Iterator[FramePoses], progress: Callable[[], None] | N
 class PoseModels:
     detector: RTMDetDetector | PicoDetDetector | FusedDetector
     pose: MoveNetPose | RTMPose | TinyPose | BlazePose | BodyAndFeet
-    hands: HandLandmarks | None = None  # the hand model (pose2d.hands)
+    hands: HandModels | None = None  # the hand models (pose2d.hands)
 
 
 @dataclass(frozen=True)

@@ -84,7 +84,8 @@ def test_the_corpus_carries_world_hands_and_their_confidence_or_nan_without_hand
 
 
 def test_the_stages_carry_the_dancers_hands_from_2d_into_the_world_on_her_wrists(
-        project: Path, dance_clip: Path, hand_model: Path, models_dir: Path, monkeypatch, tmp_path: Path) -> None:
+        project: Path, dance_clip: Path, hand_model: Path, hand_recrop_model: Path, models_dir: Path, monkeypatch,
+        tmp_path: Path) -> None:
     from pipeline.motion.hands import H36M_WRISTS
     from pipeline.motion.motionfile import read_motion
     from pipeline.motion.world.worldfile import read_world
@@ -93,7 +94,8 @@ def test_the_stages_carry_the_dancers_hands_from_2d_into_the_world_on_her_wrists
 
     monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
     (project / "models").mkdir()
-    (project / "models" / hand_model.name).symlink_to(hand_model)
+    for model in (hand_model, hand_recrop_model):
+        (project / "models" / model.name).symlink_to(model)
     clip = tmp_path / "clip.mp4"  # 3 s: her right hand comes up to her chin, her left to her hip
     ffmpeg("-ss", "2", "-t", "3", "-i", str(dance_clip), "-vf", "scale=540:960", "-c:v", "libx264", str(clip))
     write_sources(project, [("solo", clip)])

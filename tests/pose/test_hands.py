@@ -12,7 +12,14 @@ import numpy as np
 import pytest
 
 from pipeline.core.errors import InputError
-from pipeline.pose.hands import HandLandmarks, region_from_box, region_from_forearm, region_from_landmarks
+from pipeline.pose.hands import (
+    HandLandmarks,
+    HandModels,
+    HandRecrop,
+    region_from_box,
+    region_from_forearm,
+    region_from_landmarks,
+)
 from pipeline.pose.models.pose import to_image
 
 SIZE = 224
@@ -95,9 +102,10 @@ def test_handedness_is_read_on_the_image_as_it_is_not_mirrored(hand_model: Path,
 
 
 def test_eval_hands_from_the_body_and_the_palms_prints_a_table_per_dataset(
-        hand_model: Path, palm_model: Path, hand_eval_dir: Path, models_dir: Path, tmp_path: Path) -> None:
+        hand_model: Path, hand_recrop_model: Path, palm_model: Path, hand_eval_dir: Path, models_dir: Path,
+        tmp_path: Path) -> None:
     (tmp_path / "models").mkdir()
-    for model in (hand_model, palm_model):
+    for model in (hand_model, hand_recrop_model, palm_model):
         (tmp_path / "models" / model.name).symlink_to(model)
     out = tmp_path / "hands.json"
     done = subprocess.run([sys.executable, "-m", "pipeline.cli", "eval", "hands", "--annotations",
@@ -207,7 +215,7 @@ def test_a_pose2d_file_carries_hands_only_where_they_were_asked_for(tmp_path: Pa
 
 
 def test_pose2d_with_hands_puts_the_dancers_sure_hands_on_her_wrists_on_every_frame(
-        dance_clip: Path, hand_model: Path, default_models, tmp_path: Path) -> None:
+        dance_clip: Path, hand_model: Path, hand_recrop_model: Path, default_models, tmp_path: Path) -> None:
     from dataclasses import replace
 
     from pipeline.pose.models.session import create_session
@@ -217,8 +225,9 @@ def test_pose2d_with_hands_puts_the_dancers_sure_hands_on_her_wrists_on_every_fr
     clip = tmp_path / "clip.mp4"  # 2 s: her right hand comes up to her chin, her left to her hip
     ffmpeg("-ss", "2", "-t", "2", "-i", str(dance_clip), "-an", "-c:v", "libx264", "-crf", "18", str(clip))
     models, opts = default_models
+    hands = HandModels(HandLandmarks(create_session(hand_model)), HandRecrop(create_session(hand_recrop_model)))
     poses, frames = collect_poses(estimate_segment(clip, 24.0, models.detector, models.pose, replace(opts, hands=True),
-                                                   hands=HandLandmarks(create_session(hand_model))))
+                                                   hands=hands))
     assert frames == 48 and poses.hands.shape == (len(poses), 2, 21, 3)
     sure = poses.hands[:, :, 0, 2] >= 0.5
     assert sure[:, 0].any() and sure[:, 1].any()
@@ -231,7 +240,8 @@ def test_pose2d_with_hands_puts_the_dancers_sure_hands_on_her_wrists_on_every_fr
 
 
 def test_the_stages_with_hands_on_record_the_hand_model_and_the_qc_video_draws_the_hands(
-        project: Path, dance_clip: Path, hand_model: Path, models_dir: Path, monkeypatch, tmp_path: Path) -> None:
+        project: Path, dance_clip: Path, hand_model: Path, hand_recrop_model: Path, models_dir: Path, monkeypatch,
+        tmp_path: Path) -> None:
     import cv2
 
     from pipeline.core.storage import read_meta
@@ -242,7 +252,8 @@ def test_the_stages_with_hands_on_record_the_hand_model_and_the_qc_video_draws_t
 
     monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
     (project / "models").mkdir()
-    (project / "models" / hand_model.name).symlink_to(hand_model)
+    for model in (hand_model, hand_recrop_model):
+        (project / "models" / model.name).symlink_to(model)
     clip = tmp_path / "clip.mp4"
     ffmpeg("-ss", "3.5", "-t", "1", "-i", str(dance_clip), "-vf", "scale=540:960", "-c:v", "libx264", str(clip))
     write_sources(project, [("solo", clip)])
@@ -250,7 +261,7 @@ def test_the_stages_with_hands_on_record_the_hand_model_and_the_qc_video_draws_t
     set_params(project, "pose2d", hands=True)
     run_stages(project, "download", "trim", "pose2d", "track")
     pose2d = project / "data/pose2d/solo_000.parquet"
-    assert "hand-landmark-full" in read_meta(pose2d)["inputs"]
+    assert {"hand-landmark-full", "hand-recrop"} <= set(read_meta(pose2d)["inputs"])
     tracks = read_tracks(project / "data/tracks/solo_000.parquet")
     assert tracks.hands is not None and np.array_equal(tracks.hands, read_pose2d(pose2d).poses.hands)
     sure = np.flatnonzero(tracks.hands[:, 1, 0, 2] >= 0.5)  # her right hand, at her chin
@@ -267,3 +278,33 @@ def test_the_stages_with_hands_on_record_the_hand_model_and_the_qc_video_draws_t
     x, y = tracks.hands[sure[0], 1, 8, :2].astype(int)  # the index fingertip: a white joint drawn there
     white = [(image[y - 2: y + 3, x - 2: x + 3].min(-1) > 200).any() for image in (drawn, plain)]
     assert white == [True, False]
+
+
+class _FakeRecrop(HandRecrop):
+    """Points at a fixed spot of the image, whatever the region: as the re-crop model does when the
+    other hand lies in its search square."""
+
+    size = 256
+
+    def __init__(self, centre, scale) -> None:
+        self.centre, self.scale = np.asarray(centre, np.float64), np.asarray(scale, np.float64)
+
+    def points(self, image: np.ndarray, region: np.ndarray) -> np.ndarray:
+        return np.stack([self.centre, self.scale])
+
+
+def test_the_recrop_square_is_centred_above_its_first_point_turned_so_the_second_lies_towards_the_wrist() -> None:
+    region = _FakeRecrop([100, 100], [100, 140]).refine(np.zeros((10, 10, 3), np.uint8), np.eye(2, 3), SIZE)
+    corners = to_image(np.array([[0, 0], [SIZE, 0], [0, SIZE], [SIZE, SIZE]], np.float64), region)
+    assert np.allclose(corners.mean(0), [100, 92])                   # moved a tenth of its side towards the fingers
+    assert np.allclose(np.linalg.norm(corners[1] - corners[0]), 80)  # twice the points' distance
+    assert corners[0, 1] < corners[2, 1]                             # the crop's top is the image's top: fingers up
+
+
+def test_a_recropped_hand_that_is_not_on_its_wrist_gives_way_to_the_forearms_hand() -> None:
+    from pipeline.pose.hands import body_hands
+
+    image = np.zeros((480, 640, 3), np.uint8)
+    elsewhere = _FakeRecrop([500, 100], [500, 140])  # the other dancer's hand
+    (left, right), = body_hands(_FakeLandmarks(), image, _body(), recrop=elsewhere)
+    assert np.allclose(left.keypoints[0, :2], [200, 335], atol=1.0)  # the forearm's square, on her wrist

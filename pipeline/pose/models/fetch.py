@@ -81,6 +81,8 @@ ROUTES: dict[str, tuple[Route, ...]] = {
                                  "e9a5c5cb17f736fafd4c2ec1da3b3d331d6edbe8a0d32395855aeb2cdfd64b9f"),),
     "hand-landmark-full": (_mediapipe("hand_landmark/hand_landmark_full.tflite",
                                      "11c272b891e1a99ab034208e23937a8008388cf11ed2a9d776ed3d01d0ba00e3"),),
+    "hand-recrop": (_mediapipe("holistic_landmark/hand_recrop.tflite",
+                              "67d996ce96f9d36fe17d2693022c6da93168026ab2f028f9e2365398d8ac7d5d"),),
     "palm-detection-full": (_mediapipe("palm_detection/palm_detection_full.tflite",
                                       "1b14e9422c6ad006cde6581a46c8b90dd573c07ab7f3934b5589e7cea3f89a54"),),
 }
@@ -253,6 +255,11 @@ def model_outputs(name: str, path: Path) -> dict[str, list]:
 
         hand = HandLandmarks(session).run(image, region_from_box(np.array([60, 170, 40, 40])))
         return {"keypoints": np.asarray(hand.keypoints, np.float64).round(3).tolist()}
+    if name == "hand-recrop":  # where it puts the hand in a square around the end of the figure's arm (image left)
+        from pipeline.pose.hands import HandRecrop, region_from_box
+
+        points = HandRecrop(session).points(image, region_from_box(np.array([60, 170, 40, 40]), 256, 3.0))
+        return {"keypoints": np.column_stack([points, np.zeros(2)]).round(3).tolist()}
     if name == "palm-detection-full":  # the boxes before the score threshold: the card holds no palm
         from pipeline.pose.palms import PalmDetector
 

@@ -23,6 +23,7 @@ if TYPE_CHECKING:
 DEFAULT_DETECTOR = "rtmdet-nano-person"
 DEFAULT_POSE_MODEL = "movenet-lightning"
 HAND_MODEL = "hand-landmark-full"  # with pose2d.hands
+HAND_RECROP = "hand-recrop"        # ... and pose2d.hand_recrop
 
 
 @dataclass(frozen=True)
@@ -37,6 +38,7 @@ class ModelFiles:
     device: str = "auto"        # session.DEVICES
     runtimes: tuple[tuple[str, str, str], ...] = ()  # (file, runtime, precision) where not ONNX Runtime f32
     hands: str | None = None    # the hand model's file (pose2d.hands)
+    hand_recrop: str | None = None  # the re-crop model's file (pose2d.hand_recrop)
 
     def runtime(self, path: str) -> tuple[str, str]:
         return next(((r, p) for f, r, p in self.runtimes if f == path), ("onnxruntime", "f32"))
@@ -48,9 +50,9 @@ def model_names(value: str | list[str]) -> list[str]:
     return [n.strip() for n in names if n.strip()]
 
 
-def hands_on(params: dict) -> bool:
-    """Whether ``pose2d.hands`` asks for hands (a YAML boolean, or a string from the command line)."""
-    value = params.get("hands", False)
+def hands_on(params: dict, key: str = "hands", default: bool = False) -> bool:
+    """Whether ``pose2d.hands`` (or another switch) is on (a YAML boolean, or a string from the command line)."""
+    value = params.get(key, default)
     return value if isinstance(value, bool) else str(value).strip().lower() in ("true", "yes", "on", "1")
 
 
@@ -66,6 +68,7 @@ def _chosen(root: Path, params: dict) -> tuple[list, list, dict[str, Path], str,
     if len(poses) > 2:
         raise ValueError(f"pose2d.pose_model names {len(poses)} models; give one, or a body model + a feet model")
     extra = [get_spec(HAND_MODEL)] if hands_on(params) else []
+    extra += [get_spec(HAND_RECROP)] if extra and hands_on(params, "hand_recrop", True) else []
     paths = {spec.name: resolve_model(spec.name, root) for spec in dets + poses + extra}
     device = str(params.get("device", "auto"))
     try:  # an unknown device or runtime, cuda without CUDA, openvino not installed: one clear line up front
@@ -99,7 +102,8 @@ def worker_files(root: Path, params: dict) -> ModelFiles:
                       int(params.get("threads", 1)), Pose2dOptions.from_params(params).detector_floor,
                       float(params.get("crop_padding", 1.25)), device,
                       tuple((str(paths[name]), *chosen[name]) for name in paths if runtime_label(*chosen[name])),
-                      str(paths[HAND_MODEL]) if HAND_MODEL in paths else None)
+                      str(paths[HAND_MODEL]) if HAND_MODEL in paths else None,
+                      str(paths[HAND_RECROP]) if HAND_RECROP in paths else None)
 
 
 def model_files(root: Path, params: dict) -> tuple[ModelFiles, dict[str, str]]:
@@ -156,9 +160,12 @@ def load_pose_models(files: ModelFiles) -> PoseModels:
         poses.append(wrappers[kind](session, size, files.crop_padding))
     hands = None
     if files.hands is not None:
-        from pipeline.pose.hands import HandLandmarks
+        from pipeline.pose.hands import HandLandmarks, HandModels, HandRecrop
 
-        runtime, precision = files.runtime(files.hands)
-        hands = HandLandmarks(create_session(Path(files.hands), files.threads, device=files.device, runtime=runtime,
-                                             precision=precision))
+        def session(path: str):
+            runtime, precision = files.runtime(path)
+            return create_session(Path(path), files.threads, device=files.device, runtime=runtime, precision=precision)
+
+        hands = HandModels(HandLandmarks(session(files.hands)),
+                           HandRecrop(session(files.hand_recrop)) if files.hand_recrop else None)
     return PoseModels(detector, poses[0] if len(poses) == 1 else BodyAndFeet(*poses), hands)

@@ -24,7 +24,8 @@ log = logging.getLogger(__name__)
 class ModelSpec:
     name: str
     file: str
-    kind: str                   # rtmdet | picodet | movenet | rtmpose | tinypose | blazepose | hand | lifter
+    kind: str                   # rtmdet | picodet | movenet | rtmpose | tinypose | blazepose | hand | hand_recrop
+                                # | palm | lifter
     input_size: tuple[int, int]  # (width, height) the model expects
     sha256: str | None          # None: not pinned, so never downloaded automatically
     url: str | None = None      # where users get it by hand (fetchable models have routes in fetch.py)
@@ -72,6 +73,12 @@ REGISTRY: dict[str, ModelSpec] = {
             "hand-landmark-full", "hand_landmark_full.onnx", "hand", (224, 224), None,
             note="MediaPipe's hand landmark model, full (Google, Apache-2.0): 21 hand points in the image and in "
                  "metres; converted from the mediapipe 0.10.21 wheel by `dance3d models fetch hand-landmark-full`",
+        ),
+        ModelSpec(
+            "hand-recrop", "hand_recrop.onnx", "hand_recrop", (256, 256), None,
+            note="MediaPipe Holistic's hand re-crop model (Google, Apache-2.0): in a region around a hand, the "
+                 "hand's centre and size; converted from the mediapipe 0.10.21 wheel by `dance3d models fetch "
+                 "hand-recrop`",
         ),
         ModelSpec(
             "palm-detection-full", "palm_detection_full.onnx", "palm", (192, 192), None,
