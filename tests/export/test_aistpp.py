@@ -37,6 +37,7 @@ def test_a_world_file_of_an_older_schema_gets_one_line_naming_it_and_the_fix(tmp
     from pipeline.cli import main
     from pipeline.core.storage import write_parquet
     from pipeline.ingest.catalog import INDEX_SCHEMA, write_index
+    from pipeline.motion.world.worldfile import SCHEMA_VERSION
 
     row = {f.name: None for f in INDEX_SCHEMA}
     row.update(segment_id="vid_000", video_id="vid", start=0.0, end=2.0, fps=24.0, frames=48)
@@ -49,4 +50,4 @@ def test_a_world_file_of_an_older_schema_gets_one_line_naming_it_and_the_fix(tmp
     assert main(["--root", str(tmp_path), "export", "aistpp", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == [f"dance3d: {tmp_path / 'data/world/vid_000.parquet'}: world file schema 2, this dance3d reads "
-                   "schema 3: re-run the ground stage"]
+                   f"schema {SCHEMA_VERSION}: re-run the ground stage"]
