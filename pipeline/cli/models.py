@@ -21,7 +21,9 @@ def add_models(sub: argparse._SubParsersAction) -> None:
                     "and verify the result by its outputs on a fixed test card. "
                     "DANCE3D_DOWNLOAD_MIRROR=<base url> fetches https://host/path from "
                     "<base url>/host/path instead.")
-    fetch.add_argument("names", nargs="*", help="registry names (default: the detector and pose model in params.yaml)")
+    fetch.add_argument("names", nargs="*",
+                       help="registry names (default: the models params.yaml's pose2d section runs: the detector, the "
+                            "pose models, and with hands on the hand models)")
     fetch.add_argument("--to", type=Path, default=None, help="target folder (default: the project's models/)")
     fetch.add_argument("--force", action="store_true", help="fetch again even if a verified file is present")
     convert = models_sub.add_parser(
@@ -39,14 +41,12 @@ def fetch_models(root: Path, args: argparse.Namespace) -> int:
     from pipeline.core.params import load_params, stage_params
     from pipeline.core.stage import setup_logging
     from pipeline.pose.models.fetch import fetch_model
-    from pipeline.pose.models.loading import DEFAULT_DETECTOR, DEFAULT_POSE_MODEL, model_names
+    from pipeline.pose.models.loading import models_run
 
     setup_logging()
     names = args.names
     if not names:
-        pose2d = stage_params(load_params(root / "params.yaml"), "pose2d")
-        names = model_names(pose2d.get("detector", DEFAULT_DETECTOR)) + model_names(
-            pose2d.get("pose_model", DEFAULT_POSE_MODEL))
+        names = models_run(stage_params(load_params(root / "params.yaml"), "pose2d"))
     folder = args.to or root / "models"
     failed = 0
     for name in names:

@@ -308,3 +308,12 @@ def test_a_recropped_hand_that_is_not_on_its_wrist_gives_way_to_the_forearms_han
     elsewhere = _FakeRecrop([500, 100], [500, 140])  # the other dancer's hand
     (left, right), = body_hands(_FakeLandmarks(), image, _body(), recrop=elsewhere)
     assert np.allclose(left.keypoints[0, :2], [200, 335], atol=1.0)  # the forearm's square, on her wrist
+
+
+def test_models_fetch_by_default_fetches_the_hand_models_only_when_hands_are_on() -> None:
+    from pipeline.pose.models.loading import models_run
+
+    body = {"detector": "rtmdet-nano-person", "pose_model": "tinypose+blazepose-full"}
+    assert models_run(body) == ["rtmdet-nano-person", "tinypose", "blazepose-full"]
+    assert models_run({**body, "hands": True})[-2:] == ["hand-landmark-full", "hand-recrop"]
+    assert models_run({**body, "hands": True, "hand_recrop": False})[-1] == "hand-landmark-full"

@@ -56,6 +56,16 @@ def hands_on(params: dict, key: str = "hands", default: bool = False) -> bool:
     return value if isinstance(value, bool) else str(value).strip().lower() in ("true", "yes", "on", "1")
 
 
+def models_run(params: dict) -> list[str]:
+    """The registry names of the models the pose2d section ``params`` runs: the detectors, the pose
+    models and, with hands on, the hand models (what ``dance3d models fetch`` fetches by default)."""
+    names = model_names(params.get("detector", DEFAULT_DETECTOR)) + model_names(
+        params.get("pose_model", DEFAULT_POSE_MODEL))
+    if hands_on(params):
+        names += [HAND_MODEL] + ([HAND_RECROP] if hands_on(params, "hand_recrop", True) else [])
+    return names
+
+
 def _chosen(root: Path, params: dict) -> tuple[list, list, dict[str, Path], str, dict[str, tuple[str, str]]]:
     """(detector specs, pose specs, each model's file, the device, each model's runtime and precision),
     checked in the main process, so a missing model or a bad runtime is one clear error up front. The
