@@ -56,14 +56,19 @@ def hands_on(params: dict, key: str = "hands", default: bool = False) -> bool:
     return value if isinstance(value, bool) else str(value).strip().lower() in ("true", "yes", "on", "1")
 
 
+def hand_models(params: dict) -> list[str]:
+    """The hand models the pose2d section ``params`` runs: none with hands off, the landmark model,
+    and the re-crop model unless ``hand_recrop`` is off."""
+    if not hands_on(params):
+        return []
+    return [HAND_MODEL] + ([HAND_RECROP] if hands_on(params, "hand_recrop", True) else [])
+
+
 def models_run(params: dict) -> list[str]:
     """The registry names of the models the pose2d section ``params`` runs: the detectors, the pose
-    models and, with hands on, the hand models (what ``dance3d models fetch`` fetches by default)."""
-    names = model_names(params.get("detector", DEFAULT_DETECTOR)) + model_names(
-        params.get("pose_model", DEFAULT_POSE_MODEL))
-    if hands_on(params):
-        names += [HAND_MODEL] + ([HAND_RECROP] if hands_on(params, "hand_recrop", True) else [])
-    return names
+    models and the hand models (what ``dance3d models fetch`` fetches by default)."""
+    return model_names(params.get("detector", DEFAULT_DETECTOR)) + model_names(
+        params.get("pose_model", DEFAULT_POSE_MODEL)) + hand_models(params)
 
 
 def _chosen(root: Path, params: dict) -> tuple[list, list, dict[str, Path], str, dict[str, tuple[str, str]]]:
@@ -77,8 +82,7 @@ def _chosen(root: Path, params: dict) -> tuple[list, list, dict[str, Path], str,
     poses = [get_spec(name) for name in model_names(params.get("pose_model", DEFAULT_POSE_MODEL))]
     if len(poses) > 2:
         raise ValueError(f"pose2d.pose_model names {len(poses)} models; give one, or a body model + a feet model")
-    extra = [get_spec(HAND_MODEL)] if hands_on(params) else []
-    extra += [get_spec(HAND_RECROP)] if extra and hands_on(params, "hand_recrop", True) else []
+    extra = [get_spec(name) for name in hand_models(params)]
     paths = {spec.name: resolve_model(spec.name, root) for spec in dets + poses + extra}
     device = str(params.get("device", "auto"))
     try:  # an unknown device or runtime, cuda without CUDA, openvino not installed: one clear line up front
