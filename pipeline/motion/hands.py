@@ -18,9 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-MIN_PRESENCE = 0.5  # MediaPipe's own threshold
-# Each hand point's parent (MediaPipe's order: wrist, then thumb, index, middle, ring, pinky from the palm out).
-HAND_PARENTS = (-1, 0, 1, 2, 3, 0, 5, 6, 7, 0, 9, 10, 11, 0, 13, 14, 15, 0, 17, 18, 19)
+from pipeline.pose.hands import HAND_PARENTS, MIN_PRESENCE
+
 H36M_WRISTS = (13, 16)  # left, right wrist of the H36M-17 joints
 
 

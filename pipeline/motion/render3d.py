@@ -78,7 +78,7 @@ def _draw_smpl(image: np.ndarray, pts: np.ndarray) -> None:
 
 def _draw_hands(image: np.ndarray, hands: np.ndarray) -> None:
     """Each hand's 21 points (2 x 21 x 3 projected: NaN where none) as thin white fingers."""
-    from pipeline.motion.hands import HAND_PARENTS
+    from pipeline.pose.hands import HAND_PARENTS
 
     for hand in hands:
         if not np.isfinite(hand).all():

@@ -23,6 +23,8 @@ from pipeline.pose.models.pose import roi_transform, to_image, warp
 HAND_JOINTS = ("wrist", *(f"{finger}_{k}" for finger in ("thumb", "index", "middle", "ring", "pinky")
                           for k in range(1, 5)))
 WRIST, MIDDLE_KNUCKLE = 0, 9
+# Each hand point's parent: the wrist, then each finger from the palm out.
+HAND_PARENTS = (-1, 0, 1, 2, 3, 0, 5, 6, 7, 0, 9, 10, 11, 0, 13, 14, 15, 0, 17, 18, 19)
 SIDES = ("left", "right")
 # The hand's centre beyond the wrist, and the region's side, in forearm lengths (elbow -> wrist):
 # an adult hand is about 0.7 of a forearm from wrist to fingertip.

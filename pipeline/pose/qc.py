@@ -24,6 +24,7 @@ from pipeline.core.storage import atomic_path
 from pipeline.core.timecode import format_time
 from pipeline.ingest.media import ffmpeg_exe
 from pipeline.ingest.segmentvideo import SegmentVideo
+from pipeline.pose.hands import HAND_PARENTS, MIN_PRESENCE
 
 # COCO-17 limbs, drawn between keypoint pairs.
 SKELETON = ((15, 13), (13, 11), (16, 14), (14, 12), (11, 12), (5, 11), (6, 12), (5, 6), (5, 7), (6, 8),
@@ -32,9 +33,7 @@ SKELETON = ((15, 13), (13, 11), (16, 14), (14, 12), (11, 12), (5, 11), (6, 12), 
 FOOT_BONES = ((15, 17), (15, 19), (17, 19), (16, 18), (16, 20), (18, 20))
 UNTRACKED_COLOUR = (160, 160, 160)
 # A hand's 21 points (MediaPipe's order): each finger from the wrist, and across the knuckles.
-HAND_BONES = tuple((0 if k == 0 else 1 + 4 * f + k - 1, 1 + 4 * f + k) for f in range(5) for k in range(4)) + (
-    (5, 9), (9, 13), (13, 17))
-MIN_HAND_PRESENCE = 0.5  # the hand model's own threshold: an unsurer hand is not drawn
+HAND_BONES = tuple((p, j) for j, p in enumerate(HAND_PARENTS) if p >= 0) + ((5, 9), (9, 13), (13, 17))
 
 
 def id_colour(track_id: int) -> tuple[int, int, int]:
@@ -56,7 +55,7 @@ def draw_frame(image: np.ndarray, frame: int, time: float, people: list[tuple], 
     for track_id, box, kps, *hands in people:
         colour = id_colour(track_id)
         for hand in hands[0] if hands else ():
-            if hand[0, 2] >= MIN_HAND_PRESENCE:  # thin bones in the person's colour, white joints
+            if hand[0, 2] >= MIN_PRESENCE:  # sure hands only: thin bones in the person's colour, white joints
                 for a, b in HAND_BONES:
                     cv2.line(image, (int(hand[a, 0]), int(hand[a, 1])), (int(hand[b, 0]), int(hand[b, 1])), colour,
                              max(1, thick // 2), cv2.LINE_AA)

@@ -31,6 +31,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from pipeline.core.storage import column_array, fixed_list, require_schema, write_parquet
+from pipeline.motion.motionfile import HANDS_FIELDS  # the same two hand columns, here in the world frame
 from pipeline.motion.world.grounding import ROTATION_JOINTS, GroundedClip
 
 SCHEMA_VERSION = 4  # 3: smpl_poses, smpl_trans and the clip's smpl_scaling; 4: hands, hand_presence
@@ -49,8 +50,6 @@ WORLD_SCHEMA = pa.schema([
     ("smpl_poses", pa.list_(pa.float32(), 72)),
     ("smpl_trans", pa.list_(pa.float32(), 3)),
 ])
-HANDS_FIELDS = [pa.field("hands", pa.list_(pa.float32(), 2 * 21 * 3)),
-                pa.field("hand_presence", pa.list_(pa.float32(), 2))]
 
 
 @dataclass(frozen=True)
