@@ -97,6 +97,24 @@ def models_dir() -> Path:
     return _asset_dir("DANCE3D_MODELS", "rtmdet_nano_person_end2end.onnx")
 
 
+def posed_with_hands(project: Path, dance_clip: Path, hand_models: tuple[Path, ...], start: float,
+                     seconds: float, work: Path) -> Path:
+    """``project`` with pose2d.hands on and ``hand_models`` in its models/, its one segment
+    (``solo_000``) ``seconds`` of the MusePose dancer from ``start`` at 540 x 960, posed and tracked;
+    returns that clip (in ``work``)."""
+    (project / "models").mkdir()
+    for model in hand_models:
+        (project / "models" / model.name).symlink_to(model)
+    clip = work / "clip.mp4"
+    ffmpeg("-ss", str(start), "-t", str(seconds), "-i", str(dance_clip), "-vf", "scale=540:960", "-c:v", "libx264",
+           str(clip))
+    write_sources(project, [("solo", clip)])
+    (project / "annotations/segments.csv").write_text(f"video_id,start,end\nsolo,0,{seconds:g}\n")
+    set_params(project, "pose2d", hands=True)
+    run_stages(project, "download", "trim", "pose2d", "track")
+    return clip
+
+
 def write_sources(root: Path, rows: list[tuple[str, Path]]) -> None:
     """sources.csv of (video_id, local path) rows."""
     body = "".join(f"{vid},{path}\n" for vid, path in rows)

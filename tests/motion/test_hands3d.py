@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.motion.hands import HAND_PARENTS, fit_hand_skeleton, hand_shapes, world_hands
+from pipeline.motion.hands import fit_hand_skeleton, hand_shapes, world_hands
+from pipeline.pose.hands import HAND_PARENTS
 
 
 def _hand(frames: int, seed: int = 0) -> np.ndarray:
@@ -90,20 +91,13 @@ def test_the_stages_carry_the_dancers_hands_from_2d_into_the_world_on_her_wrists
     from pipeline.motion.motionfile import read_motion
     from pipeline.motion.world.worldfile import read_world
     from pipeline.pose.trackfile import read_tracks
-    from tests.conftest import PROJECT, ffmpeg, run_stages, set_params, write_sources
+    from tests.conftest import PROJECT, posed_with_hands, run_stages, set_params
 
     monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
-    (project / "models").mkdir()
-    for model in (hand_model, hand_recrop_model):
-        (project / "models" / model.name).symlink_to(model)
-    clip = tmp_path / "clip.mp4"  # 3 s: her right hand comes up to her chin, her left to her hip
-    ffmpeg("-ss", "2", "-t", "3", "-i", str(dance_clip), "-vf", "scale=540:960", "-c:v", "libx264", str(clip))
-    write_sources(project, [("solo", clip)])
-    (project / "annotations/segments.csv").write_text("video_id,start,end\nsolo,0,3\n")
-    set_params(project, "pose2d", hands=True)
+    # 3 s: her right hand comes up to her chin, her left to her hip
+    posed_with_hands(project, dance_clip, (hand_model, hand_recrop_model), 2, 3, tmp_path)
     set_params(project, "lift", model=str(PROJECT / "pipeline/motion/lifting/weights/lifter_dance3d.onnx"),
                contact_model=str(PROJECT / "pipeline/motion/world/weights/contact_dance3d.onnx"))
-    run_stages(project, "download", "trim", "pose2d", "track")
     (project / "manifests/tracks").mkdir()
     tracks = read_tracks(project / "data/tracks/solo_000.parquet")
     (project / "manifests/tracks/solo_000.csv").write_text(  # the annotator keeps her

@@ -248,18 +248,10 @@ def test_the_stages_with_hands_on_record_the_hand_model_and_the_qc_video_draws_t
     from pipeline.pose.pose2dfile import read_pose2d
     from pipeline.pose.qc import qc_video
     from pipeline.pose.trackfile import read_tracks
-    from tests.conftest import ffmpeg, run_stages, set_params, write_sources
+    from tests.conftest import posed_with_hands
 
     monkeypatch.setenv("DANCE3D_MODELS", str(models_dir))
-    (project / "models").mkdir()
-    for model in (hand_model, hand_recrop_model):
-        (project / "models" / model.name).symlink_to(model)
-    clip = tmp_path / "clip.mp4"
-    ffmpeg("-ss", "3.5", "-t", "1", "-i", str(dance_clip), "-vf", "scale=540:960", "-c:v", "libx264", str(clip))
-    write_sources(project, [("solo", clip)])
-    (project / "annotations/segments.csv").write_text("video_id,start,end\nsolo,0,1\n")
-    set_params(project, "pose2d", hands=True)
-    run_stages(project, "download", "trim", "pose2d", "track")
+    clip = posed_with_hands(project, dance_clip, (hand_model, hand_recrop_model), 3.5, 1, tmp_path)
     pose2d = project / "data/pose2d/solo_000.parquet"
     assert {"hand-landmark-full", "hand-recrop"} <= set(read_meta(pose2d)["inputs"])
     tracks = read_tracks(project / "data/tracks/solo_000.parquet")
