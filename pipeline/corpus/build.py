@@ -149,17 +149,18 @@ def collect_windows(root: Path, window: int, hop: int, val_fraction: float,
                     smpl_trans = grounded.smpl_trans[i: i + window].astype(np.float64)
                     smpl_trans[:, [0, 2]] -= start
                 smpl_poses = None if grounded.smpl_poses is None else grounded.smpl_poses[i: i + window]
-                hands = confidence = None
+                hands = confidence = hand_poses = None
                 if grounded.hands is not None:
                     hands = grounded.hands[i: i + window].astype(np.float64)
                     hands[..., [0, 2]] -= start
                     confidence = grounded.hand_presence[i: i + window]
+                    hand_poses = grounded.smpl_hand_poses[i: i + window]
                 windows.append(Window(meta, joints, feats.mfcc[k: k + window], feats.chroma[k: k + window],
                                       feats.onset[k: k + window], beat_frames["beat"], world,
                                       grounded.contact[i: i + window], grounded.rotations_6d[i: i + window],
                                       feet, world_feet, planted, probability, smpl_poses, smpl_trans,
                                       beat_frames["downbeat"], beat_frames["beat_phase"], beat_frames["bar_phase"],
-                                      hands, confidence))
+                                      hands, confidence, hand_poses))
     return windows, counts
 
 

@@ -165,7 +165,7 @@ def style_stats(metas: list[dict]) -> list[dict]:
 
 # The `smpl` config: what a trainer of EDGE or Bailando reads, with the music and provenance beside it.
 SMPL_COLUMNS = ("window_id", "video_id", "clip_id", "start_time", "smpl_poses", "smpl_trans", "smpl_scaling",
-                "contact", "planted", "mfcc", "beat", "beat_frames", "tempo", "licence")
+                "smpl_hand_poses", "contact", "planted", "mfcc", "beat", "beat_frames", "tempo", "licence")
 SMPL_TEXT = """## SMPL skeleton (config `smpl`)
 
 `smpl_poses`, `smpl_trans` and `smpl_scaling` hold each dancer's motion on the SMPL 24-joint
@@ -176,8 +176,13 @@ the rest offsets are the SMPL neutral body's as published with EDGE (`pipeline/m
 names the source and commit; no SMPL model file is used or shipped). `smpl_trans` is the pelvis joint
 itself (EDGE's convention); with an SMPL body model's own forward pass, subtract its rest pelvis joint
 from `transl`. Rotations come from inverse kinematics on the world joints (`pipeline/motion/smpl/retarget.py`
-states the rule for each joint); joints nothing in a video sees (spine 1-3 split in thirds, toes, wrists,
-hands) follow stated rules. `datasets.load_dataset(<corpus folder>, "smpl")` loads these columns with the
+states the rule for each joint); joints nothing in a video sees (spine 1-3 split in thirds, toes, and
+wrists without hands) follow stated rules. With hands (`pose2d.hands`), `smpl_hand_poses` holds SMPL-H's
+30 finger joints (left then right: index, middle, pinky, ring, thumb, three joints each, axis-angle),
+so `smpl_poses[:, :66]` followed by it is SMPL-H's 52-joint pose, and the wrists in `smpl_poses` turn
+with the palms. Finger rotations are relative to the clip's own rest hand (its palm, fingers straight on
+from the knuckles: `pipeline/motion/smpl/hands.py`); `dance3d export finedance --template` re-solves
+them onto a template's flat hand, such as the SMPL-X joints FineDance and LODGE use. `datasets.load_dataset(<corpus folder>, "smpl")` loads these columns with the
 music and provenance. `dance3d eval smpl` reports how far forward kinematics lands from the world joints."""
 
 
@@ -303,6 +308,7 @@ PyTorch loader is `pipeline.train.dataset.WindowDataset`. Each file's key-value 
 | smpl_poses | {round(window * fps)} x 72 float32 | the same motion on the SMPL 24-joint tree: local rotations, axis-angle (radians), joint-major, AIST++'s `smpl_poses` (see "SMPL skeleton" below) |
 | smpl_trans | {round(window * fps)} x 3 float32 | the SMPL pelvis joint, metres, like world_joints (y up, floor 0, x/z from the window's first root) |
 | smpl_scaling | float32 | the scale of SMPL's rest offsets for this dancer (AIST++'s `smpl_scaling`, here about 1: metres) |
+| smpl_hand_poses | {round(window * fps)} x 90 float32 | SMPL-H's 30 finger joints after its 22 body joints: left then right hand, index, middle, pinky, ring, thumb, three joints each, axis-angle (see "SMPL skeleton" below); NaN without hands |
 | mfcc | {round(window * fps)} x 39 float32 | MFCC-13, deltas, delta-deltas |
 | chroma | {round(window * fps)} x 12 float32 | chroma (STFT) |
 | onset | {round(window * fps)} float32 | onset strength |

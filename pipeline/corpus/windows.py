@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import pyarrow as pa
 
-SCHEMA_VERSION = 10  # 2: beat, downbeat and motion-beat frames, alignment scores; any frame rate. 3: tags.
+SCHEMA_VERSION = 11  # 2: beat, downbeat and motion-beat frames, alignment scores; any frame rate. 3: tags.
 #                    4: world-frame joints, root path, foot contact, bone lengths, 6D rotations, camera pitch/roll
 #                    5: feet, world_feet. 6: contact from the learned contact model, planted, contact_probability
 #                    7: group_window_id (the group window, corpus/groups.py, that holds this one's dancer)
@@ -27,6 +27,7 @@ SCHEMA_VERSION = 10  # 2: beat, downbeat and motion-beat frames, alignment score
 #                    9: downbeat flags, beat and bar phase, beat and downbeat times, the dancers' beat level,
 #                       the tracker, the AIST++ beat-align score beside Bailando's
 #                    10: world_hands, hand_confidence (NaN where pose2d.hands is off)
+#                    11: smpl_hand_poses (SMPL-H's 30 finger joints; NaN where pose2d.hands is off)
 FPS = 24  # the default corpus rate
 MFCC_DIMS = 39
 # A window built without beat analysis (tests, benchmarks) has no beats: empty lists, NaN scores.
@@ -78,6 +79,7 @@ def corpus_schema(window: int) -> pa.Schema:
         ("smpl_poses", fixed(fixed(pa.float32(), 72), window)),  # SMPL's 24 local rotations, axis-angle (AIST++)
         ("smpl_trans", fixed(fixed(pa.float32(), 3), window)),   # its pelvis joint, like world_joints
         ("smpl_scaling", pa.float32()),                           # the SMPL rest offsets' scale for this dancer
+        ("smpl_hand_poses", fixed(fixed(pa.float32(), 90), window)),  # SMPL-H's finger joints (NaN: none)
         ("mfcc", fixed(fixed(pa.float32(), MFCC_DIMS), window)),
         ("chroma", fixed(fixed(pa.float32(), CHROMA_DIMS), window)),
         ("onset", fixed(pa.float32(), window)),
@@ -122,6 +124,7 @@ class Window:
     bar_phase: np.ndarray | None = None   # W (None: NaN)
     world_hands: np.ndarray | None = None  # W x 2 x 21 x 3 like world (None: NaN)
     hand_confidence: np.ndarray | None = None  # W x 2 (None: NaN)
+    smpl_hand_poses: np.ndarray | None = None  # W x 90 (None: NaN)
 
 
 def tensor_column(values: np.ndarray, dtype: pa.DataType, shape: tuple[int, ...]) -> pa.Array:
@@ -136,7 +139,7 @@ def windows_table(windows: list[Window], window: int) -> pa.Table:
     schema = corpus_schema(window)
     tensors = ("motion", "mfcc", "chroma", "onset", "beat", "world_joints", "root", "contact", "rotations_6d",
                "bone_lengths", "feet", "world_feet", "planted", "contact_probability", "smpl_poses", "smpl_trans",
-               "downbeat", "beat_phase", "bar_phase", "world_hands", "hand_confidence")
+               "downbeat", "beat_phase", "bar_phase", "world_hands", "hand_confidence", "smpl_hand_poses")
     defaults = {**BEAT_DEFAULTS, **WORLD_DEFAULTS}
     scalars = {name: [w.meta.get(name, defaults[name]) if name in defaults else w.meta[name] for w in windows]
                for name in schema.names if name not in tensors}
@@ -178,6 +181,8 @@ def windows_table(windows: list[Window], window: int) -> pa.Table:
                                      (window, 2, 21, 3)),
         "hand_confidence": tensor_column(stack("hand_confidence", (window, 2)).astype(np.float32), pa.float32(),
                                          (window, 2)),
+        "smpl_hand_poses": tensor_column(stack("smpl_hand_poses", (window, 90)).astype(np.float32), pa.float32(),
+                                         (window, 90)),
     }
     columns = [arrays[f.name] if f.name in arrays else pa.array(scalars[f.name], f.type) for f in schema]
     return pa.Table.from_arrays(columns, schema=schema)

@@ -11,12 +11,15 @@ skeleton, ``rotations.BVH_JOINTS`` order), smpl_poses and smpl_trans (the same m
 tree, ``pipeline.motion.smpl.retarget``: 24 local rotations as axis-angle, the pelvis joint's path;
 schema 3), and where pose2d found hands, hands (left, right hand's 21 points in the world, hung on
 the wrists, one hand skeleton per clip: ``pipeline.motion.hands.world_hands``; NaN for a hand never
-seen in the clip) and hand_presence (the hand model's, per hand and frame; schema 4).
+seen in the clip) and hand_presence (the hand model's, per hand and frame; schema 4), and with them
+smpl_hand_poses (SMPL-H's 30 finger joints, axis-angle, relative to the clip's own rest hands:
+``pipeline.motion.smpl.hands``; the seen hands' wrists in smpl_poses turn with the palms; schema 5).
 
 Per clip, in the file's metadata (``clips``): bone_lengths, camera pitch and roll, the largest
 limb-length CV before the one skeleton and how far it moved the joints, skating before and after
 pinning, the contact share, whether contact was learned, the scale that put the clip on the
-scene's floor (``scene_scale``) and the SMPL skeleton's (``smpl_scaling``). Per segment (``scene``):
+scene's floor (``scene_scale``) and the SMPL skeleton's (``smpl_scaling``); with hands, each rest
+hand (``smpl_hands``: knuckles and bone lengths, for forward kinematics). Per segment (``scene``):
 the scene's camera pitch and roll, whether its clips share a floor, how many clips.
 """
 
@@ -34,7 +37,8 @@ from pipeline.core.storage import column_array, fixed_list, require_schema, writ
 from pipeline.motion.motionfile import HANDS_FIELDS  # the same two hand columns, here in the world frame
 from pipeline.motion.world.grounding import ROTATION_JOINTS, GroundedClip
 
-SCHEMA_VERSION = 4  # 3: smpl_poses, smpl_trans and the clip's smpl_scaling; 4: hands, hand_presence
+SCHEMA_VERSION = 5  # 3: smpl_poses, smpl_trans and the clip's smpl_scaling; 4: hands, hand_presence;
+#                    5: smpl_hand_poses, the seen hands' wrists turned with the palms
 ROTATIONS = len(ROTATION_JOINTS)
 WORLD_SCHEMA = pa.schema([
     ("clip_id", pa.string()),
@@ -69,6 +73,7 @@ class WorldClip:
     smpl_trans: np.ndarray | None = None   # n x 3 its pelvis joint (facts["smpl_scaling"]: its scale)
     hands: np.ndarray | None = None        # n x 2 x 21 x 3 world hands (None: not asked for; NaN: never seen)
     hand_presence: np.ndarray | None = None  # n x 2
+    smpl_hand_poses: np.ndarray | None = None  # n x 90 SMPL-H's finger joints (facts["smpl_hands"]: rests)
 
 
 def world_clip(clip_id: str, track_id: int, frame: np.ndarray, time: np.ndarray, grounded: GroundedClip,
@@ -77,9 +82,12 @@ def world_clip(clip_id: str, track_id: int, frame: np.ndarray, time: np.ndarray,
     """A grounded clip as the world file stores it, retargeted onto the SMPL tree; with the motion's
     wrist-relative ``hands`` (and their presence), its hands in the world."""
     from pipeline.motion.hands import H36M_WRISTS, world_hands
+    from pipeline.motion.smpl.hands import rest_facts, retarget_hands
+    from pipeline.motion.smpl.kinematics import to_axis_angle
     from pipeline.motion.smpl.retarget import retarget
 
     smpl = retarget(grounded.joints, grounded.feet)
+    poses, hand_poses = smpl.poses, None
     facts = {"bone_lengths": [round(float(x), 6) for x in grounded.bone_lengths],
              "pitch_deg": round(grounded.pitch_deg, 2), "roll_deg": round(grounded.roll_deg, 2),
              "bone_cv_before": round(grounded.cv_before, 5), "fit_moved_mm": round(1000 * grounded.fit_moved, 2),
@@ -89,9 +97,12 @@ def world_clip(clip_id: str, track_id: int, frame: np.ndarray, time: np.ndarray,
              "scene_scale": round(float(scene_scale), 4), "smpl_scaling": round(smpl.scale, 6)}
     if hands is not None:
         hands = world_hands(hands, hand_presence, grounded.camera.rotation, grounded.joints[:, list(H36M_WRISTS)])
+        fingers = retarget_hands(smpl.local, hands, hand_presence)
+        poses, hand_poses = to_axis_angle(fingers.local), fingers.poses
+        facts["smpl_hands"] = rest_facts(fingers.rests)
     return WorldClip(clip_id, track_id, frame, time, grounded.joints, grounded.feet, grounded.contact,
                      grounded.planted, grounded.contact_probability, grounded.rotations_6d, facts,
-                     smpl.poses, smpl.trans, hands, hand_presence)
+                     poses, smpl.trans, hands, hand_presence, hand_poses)
 
 
 def _table(clips: list[WorldClip]) -> pa.Table:
@@ -120,7 +131,8 @@ def _table(clips: list[WorldClip]) -> pa.Table:
     if clips[0].hands is None:  # a segment's clips all have hands, or none has
         return table
     table = table.append_column(HANDS_FIELDS[0], fixed_list(cat([c.hands for c in clips], (2 * 21 * 3,))))
-    return table.append_column(HANDS_FIELDS[1], fixed_list(cat([c.hand_presence for c in clips], (2,))))
+    table = table.append_column(HANDS_FIELDS[1], fixed_list(cat([c.hand_presence for c in clips], (2,))))
+    return table.append_column("smpl_hand_poses", fixed_list(cat([c.smpl_hand_poses for c in clips], (90,))))
 
 
 def write_world(path: Path, clips: list[WorldClip], segment_meta: Mapping[str, Any], *, fingerprint: str,
@@ -146,7 +158,8 @@ def read_world(path: Path) -> list[WorldClip]:
     hands = {}
     if "hands" in table.column_names:
         hands = {"hands": column_array(table, "hands", (2, 21, 3)),
-                 "hand_presence": column_array(table, "hand_presence", (2,))}
+                 "hand_presence": column_array(table, "hand_presence", (2,)),
+                 "smpl_hand_poses": column_array(table, "smpl_hand_poses", (90,))}
     clips = []
     for clip_id in dict.fromkeys(ids):
         rows = np.flatnonzero(ids == clip_id)
