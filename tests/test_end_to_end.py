@@ -81,6 +81,7 @@ def test_dvc_repro_runs_the_demo(built_demo: Path, tmp_path: Path) -> None:
     assert np.array(smpl[0]["smpl_poses"]).shape == (8 * 24, 72) and 0.7 < smpl[0]["smpl_scaling"] < 1.3
     _exports_aistpp(root, tmp_path / "aistpp")
     _exports_edge(root, tmp_path / "edge")
+    _exports_finedance(root, tmp_path / "finedance")
     _draws_and_exports_the_smpl_skeleton(root, tmp_path)
     beats = pq.read_table(shards[0], columns=["beat", "beat_frames", "motion_beat_frames"]).to_pylist()[0]
     assert beats["beat_frames"] == [i for i, flag in enumerate(beats["beat"]) if flag]  # flags and frames agree
@@ -161,6 +162,25 @@ def _exports_edge(root: Path, out: Path) -> None:
     features = first.parent.parent / "edge_features" / first.name.replace(".pkl", ".npy")
     assert np.load(features).shape == (60, 151) and set(np.unique(np.load(features)[:, :4])) <= {0.0, 1.0}
     assert np.load(first.parent.parent / "baseline_feats" / features.name).shape == (60, 35)
+
+
+def _exports_finedance(root: Path, out: Path) -> None:
+    """`dance3d export finedance`: one motion, wav and music feature file per dancer, of one name and
+    one length (the demo runs without hands: flat fingers)."""
+    import soundfile
+
+    done = subprocess.run([sys.executable, "-m", "pipeline.cli", "export", "finedance", str(out)], cwd=root,
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr[-2000:]
+    names = sorted(p.stem for p in (out / "motion").glob("*.npy"))
+    assert len(names) == 2 and names == sorted(p.stem for p in (out / "music_npy").glob("*.npy"))
+    splits = (out / "splits/train.txt").read_text().split() + (out / "splits/test.txt").read_text().split()
+    assert sorted(splits) == names
+    for name in names:
+        motion, music = np.load(out / "motion" / f"{name}.npy"), np.load(out / "music_npy" / f"{name}.npy")
+        assert motion.shape[1] == 315 and music.shape == (len(motion), 35)
+        assert np.allclose(motion[:, 3 + 22 * 6:].reshape(-1, 30, 2, 3), np.eye(3)[:2])  # flat hands
+        assert abs(soundfile.info(str(out / "music_wav" / f"{name}.wav")).duration - len(motion) / 30) < 0.01
 
 
 def _exports_aistpp(root: Path, out: Path) -> None:

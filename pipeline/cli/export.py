@@ -1,4 +1,4 @@
-"""`dance3d export bvh | aistpp | edge | gdance`: motion for animation tools and for trainers."""
+"""`dance3d export bvh | aistpp | edge | finedance | gdance`: motion for animation tools and for trainers."""
 
 from __future__ import annotations
 
@@ -55,6 +55,22 @@ def add_export(sub: argparse._SubParsersAction) -> None:
     edge.add_argument("out", type=Path, help="the folder to write")
     edge.add_argument("--length", type=float, default=5.0, help="slice length in seconds (EDGE: 5)")
     edge.add_argument("--stride", type=float, default=0.5, help="seconds between slices (EDGE: 0.5)")
+    finedance = export_sub.add_parser(
+        "finedance", help="every dancer's clip on the SMPL-H skeleton, fingers too, in FineDance's layout (LODGE)",
+        description="Write the corpus's dancers (data/world, data/audio) as FineDance lays out its dances, for "
+                    "LODGE and the whole-body generators trained on FineDance: motion/<name>.npy (T x 315 at 30 "
+                    "fps: the root position, then SMPL-H's 52 joints as 6D rotations, y up), music_wav/<name>.wav, "
+                    "music_npy/<name>.npy (T x 35 FineDance's music features, the beat column from dance3d's "
+                    "beats), splits/{train,test}.txt (the corpus's split by video) and names.csv. LODGE: point "
+                    "data/code/preprocess.py at OUT/motion and OUT/music_npy.",
+        epilog="fingers come from pose2d.hands (flat where it was off); --template re-solves them onto a joint "
+               "template's flat hands: FineDance's smplx_neu_J_1.npy (its licence forbids redistribution, so "
+               "dance3d does not ship it) makes LODGE's forward kinematics put the fingers where the corpus's "
+               "world hands are")
+    finedance.add_argument("out", type=Path, help="the folder to write")
+    finedance.add_argument("--template", type=Path, metavar="J.npy",
+                           help="joint positions (52 x 3 SMPL-H or 55 x 3 SMPL-X) of the body LODGE's forward "
+                                "kinematics poses; default: the fingers relative to each clip's own rest hand")
     gdance = export_sub.add_parser(
         "gdance", help="the groups on the SMPL skeleton in AIOZ-GDANCE's layout (group choreography trainers)",
         description="Write the corpus's groups (data/world, data/audio) as AIOZ-GDANCE lays out its group dances: "
@@ -70,6 +86,7 @@ def add_export(sub: argparse._SubParsersAction) -> None:
     bvh.set_defaults(handler=export_bvh)
     aistpp.set_defaults(handler=export_aistpp)
     edge.set_defaults(handler=export_edge)
+    finedance.set_defaults(handler=export_finedance)
     gdance.set_defaults(handler=export_gdance)
 
 
@@ -171,6 +188,25 @@ def export_edge(root: Path, args: argparse.Namespace) -> int:
     train = sum(s.split == "train" for s in slices)
     print(f"wrote {args.out}: {len(slices)} slices of {args.length:g} s from {len({s.sequence for s in slices})} "
           f"sequences ({train} train, {len(slices) - train} test)")
+    return 0
+
+
+def export_finedance(root: Path, args: argparse.Namespace) -> int:
+    from pipeline.export.finedance import FINEDANCE_FPS, export, read_template
+
+    try:
+        template = None if args.template is None else read_template(args.template)
+    except Dance3dError as exc:
+        say(exc)
+        return 2
+    sequences = _exported(root, "finedance", lambda val: export(root, args.out, val, template),
+                          "no clip has SMPL motion and audio: run `dvc repro ground audio`")
+    if sequences is None:
+        return 2
+    frames = sum(len(s.motion) for s in sequences)
+    print(f"wrote {args.out}: {len(sequences)} sequences ({sum(s.split == 'train' for s in sequences)} train, "
+          f"{sum(s.hands for s in sequences)} with hands), {frames / FINEDANCE_FPS / 60:.1f} minutes at "
+          f"{FINEDANCE_FPS:g} fps; names.csv maps them to clips")
     return 0
 
 
