@@ -27,8 +27,9 @@ def add_export(sub: argparse._SubParsersAction) -> None:
     bvh.add_argument("out", type=Path, help="the .bvh file to write (with --all: a folder)")
     bvh.add_argument("--smpl", action="store_true",
                      help="MOTION is a world file (data/world): write the clip on the SMPL skeleton (its 24 joints by "
-                          "SMPL's names, rest offsets times smpl_scaling, T-pose rest, the world file's frame); with "
-                          "--all every dancer of the segment, where they danced")
+                          "SMPL's names, rest offsets times smpl_scaling, T-pose rest, the world file's frame; with "
+                          "hands, SMPL-H's 52 joints, the fingers on the clip's own rest hands); with --all every "
+                          "dancer of the segment, where they danced")
     bvh.add_argument("--all", action="store_true",
                      help="every clip of the file, one BVH per dancer (<clip_id>.bvh in the folder OUT), all in the "
                           "segment's one scene: import them together and the dancers stand where they danced")
@@ -122,7 +123,7 @@ def _export_world_bvh(args: argparse.Namespace) -> int:
 def _export_smpl_bvh(args: argparse.Namespace) -> int:
     from pipeline.core.storage import read_meta
     from pipeline.motion.bvh_export import write_bvh
-    from pipeline.motion.smpl.bvh import smpl_skeleton_motion
+    from pipeline.motion.smpl.bvh import clip_skeleton_motion
     from pipeline.motion.world.worldfile import read_world
 
     if args.all == (args.clip_id is not None):
@@ -143,8 +144,10 @@ def _export_smpl_bvh(args: argparse.Namespace) -> int:
     fps = float(read_meta(args.motion).get("fps", 24.0))
     for clip, out in outs:
         scale = float(clip.facts["smpl_scaling"])
-        write_bvh(out, smpl_skeleton_motion(clip.smpl_poses, clip.smpl_trans, scale), fps)
-        print(f"wrote {out}: {len(clip.smpl_poses)} frames at {fps:g} fps on the SMPL skeleton (scale {scale:.3f}), "
+        motion = clip_skeleton_motion(clip)
+        write_bvh(out, motion, fps)
+        tree = "SMPL-H skeleton (52 joints, fingers too)" if len(motion.spec) == 52 else "SMPL skeleton"
+        print(f"wrote {out}: {len(clip.smpl_poses)} frames at {fps:g} fps on the {tree} (scale {scale:.3f}), "
               f"from frame {int(clip.frame[0])} ({clip.time[0]:.2f} s)")
     return 0
 

@@ -131,18 +131,24 @@ def render_smpl(root: Path, args: argparse.Namespace) -> int:
     from pipeline.core.paths import AUDIO
     from pipeline.core.storage import read_meta
     from pipeline.motion.render3d import render_clip
-    from pipeline.motion.smpl.bvh import smpl_skeleton_motion
+    from pipeline.motion.smpl.bvh import clip_skeleton_motion
+    from pipeline.motion.smpl.hands import rests_from_facts, smplh_hand_points
 
     clip = world_clip_of(args.motion, args.clip_id)
     if clip is None:
         return 2
     meta = read_meta(args.motion)
-    smpl = smpl_skeleton_motion(clip.smpl_poses, clip.smpl_trans, float(clip.facts["smpl_scaling"]))
+    smpl = clip_skeleton_motion(clip)
+    fingers = None
+    if len(smpl.spec) == 52:  # SMPL-H: the body's 22 joints, the fingers with their tips
+        fingers = smplh_hand_points(smpl.local, smpl.joints, rests_from_facts(clip.facts["smpl_hands"]))
     world = clip.joints if clip.feet is None else np.concatenate([clip.joints, clip.feet], 1)
     render_clip(world, clip.time, float(meta.get("fps", 24.0)), args.out,
                 audio=root / AUDIO / f"{meta.get('segment_id', '')}.flac", title=f"{args.clip_id} + SMPL",
-                contact=clip.contact, smpl=smpl.joints, hands=clip.hands)
-    print(f"wrote {args.out}: the world skeleton with the SMPL skeleton in yellow")
+                contact=clip.contact, smpl=smpl.joints[:, :22 if fingers is not None else 24], hands=clip.hands,
+                smpl_hands=fingers)
+    print(f"wrote {args.out}: the world skeleton with the SMPL skeleton in yellow"
+          + (" (SMPL-H: its fingers by forward kinematics)" if fingers is not None else ""))
     return 0
 
 

@@ -42,7 +42,7 @@ def write_bvh(path: Path, motion: SkeletonMotion, fps: float) -> None:
         for k in kids:
             emit(k, depth + 1)
         if not kids:
-            end = _END_SITES.get(spec.name, (0.0, 0.05, 0.0))
+            end = (motion.ends or {}).get(spec.name, _END_SITES.get(spec.name, (0.0, 0.05, 0.0)))
             lines.extend([f"{pad}  End Site", f"{pad}  {{", f"{pad}    OFFSET {' '.join(_num(v) for v in end)}",
                           f"{pad}  }}"])
         lines.append(f"{pad}}}")

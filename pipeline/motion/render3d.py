@@ -65,10 +65,10 @@ def _oblique(points: np.ndarray, centre: np.ndarray, azimuth: float = 35.0, elev
 
 
 def _draw_smpl(image: np.ndarray, pts: np.ndarray) -> None:
-    """The SMPL tree's bones, thin and yellow, and its joints as dots."""
+    """The SMPL tree's bones (its first ``len(pts)`` joints), thin and yellow, and its joints as dots."""
     from pipeline.motion.smpl.skeleton import PARENTS
 
-    for j, p in enumerate(PARENTS):
+    for j, p in enumerate(PARENTS[: len(pts)]):
         if p >= 0:
             cv2.line(image, tuple(int(v) for v in pts[p]), tuple(int(v) for v in pts[j]), (0, 230, 255), 1,
                      cv2.LINE_AA)
@@ -76,8 +76,8 @@ def _draw_smpl(image: np.ndarray, pts: np.ndarray) -> None:
         cv2.circle(image, (int(q[0]), int(q[1])), 2, (0, 230, 255), -1, cv2.LINE_AA)
 
 
-def _draw_hands(image: np.ndarray, hands: np.ndarray) -> None:
-    """Each hand's 21 points (2 x 21 x 3 projected: NaN where none) as thin white fingers."""
+def _draw_hands(image: np.ndarray, hands: np.ndarray, colour: tuple[int, int, int] = (240, 240, 240)) -> None:
+    """Each hand's 21 points (2 x 21 x 3 projected: NaN where none) as thin fingers, white by default."""
     from pipeline.pose.hands import HAND_PARENTS
 
     for hand in hands:
@@ -85,17 +85,18 @@ def _draw_hands(image: np.ndarray, hands: np.ndarray) -> None:
             continue
         for j, p in enumerate(HAND_PARENTS):
             if p >= 0:
-                cv2.line(image, tuple(int(v) for v in hand[p]), tuple(int(v) for v in hand[j]), (240, 240, 240), 1,
+                cv2.line(image, tuple(int(v) for v in hand[p]), tuple(int(v) for v in hand[j]), colour, 1,
                          cv2.LINE_AA)
 
 
 def draw_world(joints: np.ndarray, contact: np.ndarray, trail: np.ndarray, centre: np.ndarray,
                size: int = 480, extent: float = 1.6, smpl: np.ndarray | None = None,
-               hands: np.ndarray | None = None) -> np.ndarray:
+               hands: np.ndarray | None = None, smpl_hands: np.ndarray | None = None) -> np.ndarray:
     """Two panels of world motion (y up, floor y = 0): an oblique view with the floor grid, and
     the floor seen from above. Feet in contact are green discs; the root's recent path is the
     orange trail. ``smpl`` (24 x 3): the SMPL skeleton's joints, drawn in yellow over the world's;
-    ``hands`` (2 x 21 x 3, NaN where none): the hands' fingers, in white."""
+    ``hands`` (2 x 21 x 3, NaN where none): the hands' fingers, in white; ``smpl_hands`` (the same):
+    SMPL-H's fingers by forward kinematics, in yellow."""
     scale = size / (2 * extent)
     floor_c = np.array([centre[0], 0.0, centre[2]])
     views = (lambda p: _oblique(p, floor_c + [0.0, 0.9, 0.0]) * scale + size / 2,
@@ -123,6 +124,8 @@ def draw_world(joints: np.ndarray, contact: np.ndarray, trail: np.ndarray, centr
             _draw_smpl(panel, project(smpl))
         if hands is not None:
             _draw_hands(panel, project(hands))
+        if smpl_hands is not None:
+            _draw_hands(panel, project(smpl_hands), (0, 230, 255))
         panels.append(panel)
     canvas = np.concatenate(panels, axis=1)
     cv2.line(canvas, (size, 0), (size, size), (90, 90, 90), 1)
@@ -159,11 +162,11 @@ def encode_mp4(frames: Iterable[np.ndarray], out: Path, width: int, height: int,
 
 def render_clip(joints: np.ndarray, times: np.ndarray, fps: float, out: Path, *, audio: Path | None = None,
                 title: str = "", contact: np.ndarray | None = None, smpl: np.ndarray | None = None,
-                hands: np.ndarray | None = None) -> None:
+                hands: np.ndarray | None = None, smpl_hands: np.ndarray | None = None) -> None:
     """Write ``out`` (H.264 mp4); ``audio`` (the segment's wav) is cut to the clip's times.
     ``joints``: T x 17 x 3, or 21 with the heels and toes. With ``contact`` (T x 2), ``joints``
-    are world motion and are drawn with ``draw_world``, and ``smpl`` (T x 24 x 3) and ``hands``
-    (T x 2 x 21 x 3) over them."""
+    are world motion and are drawn with ``draw_world``, and ``smpl`` (T x 24 x 3), ``hands`` and
+    ``smpl_hands`` (T x 2 x 21 x 3) over them."""
     size = 480
     centre = joints[:, 0].mean(0)
 
@@ -171,7 +174,8 @@ def render_clip(joints: np.ndarray, times: np.ndarray, fps: float, out: Path, *,
         for k, (pose, t) in enumerate(zip(joints, times)):
             frame = draw_pose(pose, size) if contact is None else draw_world(
                 pose, contact[k], joints[max(0, k - int(4 * fps)): k + 1, 0], centre, size,
-                smpl=None if smpl is None else smpl[k], hands=None if hands is None else hands[k])
+                smpl=None if smpl is None else smpl[k], hands=None if hands is None else hands[k],
+                smpl_hands=None if smpl_hands is None else smpl_hands[k])
             cv2.putText(frame, f"{title}  {format_time(float(t))}", (10, size - 12), cv2.FONT_HERSHEY_SIMPLEX, 0.6,
                         (255, 255, 255), 1, cv2.LINE_AA)
             yield frame

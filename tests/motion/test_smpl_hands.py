@@ -99,3 +99,30 @@ def test_an_unseen_hand_keeps_its_wrist_and_straight_fingers_and_a_seen_one_turn
 def test_a_template_of_the_wrong_shape_is_refused_with_its_shape() -> None:
     with pytest.raises(ValueError, match="52 x 3 .* not 24 x 3"):
         template_rest(np.zeros((24, 3)), 0)
+
+
+def test_an_smplh_bvh_reads_back_as_the_same_52_joints_and_draws_the_fingertips(tmp_path) -> None:
+    """A BVH reader's forward kinematics of ``export bvh --smpl`` with hands gives SMPL-H's joints,
+    and the hand points drawn by ``render --smpl`` are the rest hand posed by the finger rotations."""
+    from pipeline.motion.bvh_export import write_bvh
+    from pipeline.motion.mocap.bvh import forward_kinematics, read_bvh
+    from pipeline.motion.smpl.bvh import smplh_skeleton_motion
+    from pipeline.motion.smpl.hands import smplh_hand_points
+
+    frames = 5
+    poses = (Rotation.random(frames * 24, random_state=4).as_rotvec() * 0.4).reshape(frames, 72)
+    hand_poses = (Rotation.random(frames * 30, random_state=5).as_rotvec() * 0.3).reshape(frames, 90)
+    trans = np.stack([np.linspace(0, 0.5, frames), np.full(frames, 0.9), np.zeros(frames)], 1)
+    rest = template_rest(_template(), 0)
+    motion = smplh_skeleton_motion(poses, hand_poses, trans, 0.93, (rest, None))  # the right hand: mirrored
+    assert motion.joints.shape == (frames, 52, 3)
+    write_bvh(tmp_path / "smplh.bvh", motion, 24.0)
+    bvh = read_bvh(tmp_path / "smplh.bvh")
+    positions, _, _ = forward_kinematics(bvh, "replace")
+    back = positions[:, [bvh.index(name) for name in SMPLH_JOINTS]]
+    assert np.abs(back - motion.joints).max() < 1e-5  # the file's six decimals
+    points = smplh_hand_points(motion.local, motion.joints, (rest, None))
+    assert np.isnan(points[:, 1]).all()
+    from pipeline.motion.smpl.hands import CHAINS
+    knuckles_then_joints = [chain[k] for chain in CHAINS for k in range(3)]
+    assert np.allclose(points[:, 0, knuckles_then_joints], motion.joints[:, 22:37], atol=1e-9)

@@ -224,3 +224,47 @@ def rests_from_facts(facts: dict) -> tuple[RestHand | None, RestHand | None]:
         out.append(RestHand(knuckles, np.repeat(unit(knuckles)[:, None], 3, axis=1),
                             np.asarray(fact["lengths"], np.float64)))
     return out[0], out[1]
+
+
+def mirrored(rest: RestHand) -> RestHand:
+    """The other hand's rest: ``rest`` mirrored left to right (x)."""
+    flip = np.array([-1.0, 1.0, 1.0])
+    return RestHand(rest.knuckles * flip, rest.bones * flip, rest.lengths)
+
+
+def both_rests(rests: tuple[RestHand | None, RestHand | None]) -> tuple[RestHand, RestHand]:
+    """Both rest hands, an unseen one the seen one mirrored (at least one must be seen)."""
+    left, right = rests
+    return (left if left is not None else mirrored(right)), (right if right is not None else mirrored(left))
+
+
+def smplh_offsets(body: np.ndarray, rests: tuple[RestHand, RestHand]) -> tuple[np.ndarray, np.ndarray]:
+    """(52 x 3 SMPL-H rest offsets: the body's first 22 (``body``, already scaled), each finger joint's
+    from its parent on the rest hands; 30 x 3 each finger joint's bone beyond it, to the next joint
+    or, for a third joint, the fingertip)."""
+    offsets, beyond = np.zeros((52, 3)), np.zeros((30, 3))
+    offsets[:22] = np.asarray(body, np.float64)[:22]
+    for side, rest in enumerate(rests):
+        for f in range(5):
+            k = 15 * side + 3 * f
+            offsets[22 + k] = rest.knuckles[f]
+            for step in range(3):
+                beyond[k + step] = rest.lengths[f, step] * rest.bones[f, step]
+            offsets[23 + k: 25 + k] = beyond[k: k + 2]
+    return offsets, beyond
+
+
+def smplh_hand_points(local: np.ndarray, joints: np.ndarray, rests: tuple[RestHand | None, RestHand | None]
+                      ) -> np.ndarray:
+    """T x 2 x 21 x 3 both hands' points, fingertips included, by forward kinematics of SMPL-H's
+    local rotations and joints (T x 52 x 3 x 3, T x 52 x 3) on ``rests``; NaN for a hand without one."""
+    from pipeline.motion.smpl.kinematics import global_rotations
+
+    glob = global_rotations(local, SMPLH_PARENTS)
+    out = np.full((len(local), 2, 21, 3), np.nan)
+    for side, rest in enumerate(rests):
+        if rest is not None:
+            wrist = SMPL_WRISTS[side]
+            fingers = local[:, 22 + 15 * side: 37 + 15 * side]
+            out[:, side] = hand_forward(joints[:, wrist], glob[:, wrist], fingers, rest)
+    return out

@@ -9,21 +9,22 @@ from scipy.spatial.transform import Rotation
 from pipeline.motion.smpl.skeleton import PARENTS, REST_OFFSETS
 
 
-def global_rotations(local: np.ndarray) -> np.ndarray:
-    """T x 24 x 3 x 3 world rotations of each joint from its local ones."""
+def global_rotations(local: np.ndarray, parents: tuple[int, ...] = PARENTS) -> np.ndarray:
+    """T x J x 3 x 3 world rotations of each joint from its local ones (SMPL's tree, or ``parents``)."""
     out = np.empty_like(local)
-    for j, p in enumerate(PARENTS):
+    for j, p in enumerate(parents):
         out[:, j] = local[:, j] if p < 0 else out[:, p] @ local[:, j]
     return out
 
 
-def forward(local: np.ndarray, trans: np.ndarray, scale: float = 1.0, offsets: np.ndarray = REST_OFFSETS
-            ) -> np.ndarray:
-    """T x 24 x 3 joint positions: local rotations (T x 24 x 3 x 3), the pelvis path (T x 3) and the
-    skeleton's scale (``smpl_scaling``: the rest offsets times it; other ``offsets`` only to measure)."""
-    glob = global_rotations(local)
+def forward(local: np.ndarray, trans: np.ndarray, scale: float = 1.0, offsets: np.ndarray = REST_OFFSETS,
+            parents: tuple[int, ...] = PARENTS) -> np.ndarray:
+    """T x J x 3 joint positions: local rotations (T x J x 3 x 3), the pelvis path (T x 3) and the
+    skeleton's scale (``smpl_scaling``: the rest offsets times it; other ``offsets`` to measure, or
+    with ``parents``, SMPL-H's)."""
+    glob = global_rotations(local, parents)
     out = np.empty(local.shape[:2] + (3,))
-    for j, p in enumerate(PARENTS):
+    for j, p in enumerate(parents):
         out[:, j] = trans if p < 0 else out[:, p] + glob[:, p] @ (scale * offsets[j])
     return out
 

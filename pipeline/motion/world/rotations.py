@@ -76,6 +76,7 @@ class SkeletonMotion:
     local: np.ndarray      # T x J x 3 x 3 local rotations
     joints: np.ndarray     # T x 17 x 3 the H36M joints on the skeleton (what forward kinematics gives); 21 with feet
     spec: tuple = BVH_JOINTS  # the hierarchy (BVH_JOINTS, or BVH_JOINTS_FEET)
+    ends: dict | None = None  # joint name -> its End Site's offset, where the hierarchy's default will not do
 
 
 def _fit_feet(world_joints: np.ndarray, joints: np.ndarray) -> tuple[np.ndarray, dict[int, float]]:
