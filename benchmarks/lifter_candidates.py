@@ -7,11 +7,14 @@ decaying over exactly those steps (a run cut short by the clock would stop at a 
 favour nobody), and is scored with the held-out protocol: the 40 sequences of today's set and the
 later sources' takes, clean and noisy 2D.
 
-Candidates: ``rf81`` (the shipped architecture: dilated convolutions, 81 frames, 256 channels) and
-``rf243`` (243 frames, 256 channels).
+Candidates: ``rf81`` (the shipped architecture: dilated convolutions, 81 frames, 256 channels),
+``rf243`` (243 frames, 256 channels) and ``stt81`` (a compact spatio-temporal transformer of the
+MixSTE kind, ``pipeline.motion.lifting.transformer``: 81 frames, width 64, three spatial and three
+temporal blocks), trained by the same loop with the transformer in the convolutions' place. The
+loop's own module is left as it is while the long run resumes from checkpoints keyed by its source.
 
 Usage: DANCE3D_MOCAP=../shared/mocap python -m benchmarks.lifter_candidates [--minutes 20]
-           [--candidates rf81,rf243] [--profile long] [--out benchmarks/results/lifter_candidates.json]
+           [--candidates rf81,rf243,stt81] [--profile long] [--out benchmarks/results/lifter_candidates.json]
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ import argparse
 import json
 import os
 import time
+from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 
@@ -30,7 +34,34 @@ from pipeline.motion.lifting.evaluate import format_report, held_out_later, spli
 from stages.train_lifter import config_from_params
 
 ARCHITECTURES = {"rf81": {"filter_widths": (3, 3, 3, 3), "channels": 256},
-                 "rf243": {"filter_widths": (3, 3, 3, 3, 3), "channels": 256}}
+                 "rf243": {"filter_widths": (3, 3, 3, 3, 3), "channels": 256},
+                 "stt81": {"filter_widths": (3, 3, 3, 3), "channels": 64}}
+TRANSFORMERS = {"stt81": {"dim": 64, "depth": 3, "heads": 4}}
+
+
+@contextmanager
+def architecture(name: str, chunk: int):
+    """The training loop builds ``name``'s model: the convolutions, or in their place a transformer
+    with the same receptive field (the loop's ``TemporalModel`` swapped for the duration)."""
+    from pipeline.motion.lifting import train as training
+
+    if name not in TRANSFORMERS:
+        yield
+        return
+    from pipeline.motion.lifting.transformer import SpatioTemporalTransformer
+
+    def build(joints_in, joints_out, filter_widths, channels, dropout):
+        rf = 1
+        for w in filter_widths:
+            rf *= w
+        return SpatioTemporalTransformer(joints_in, joints_out, rf, chunk, **TRANSFORMERS[name])
+
+    original = training.TemporalModel
+    training.TemporalModel = build
+    try:
+        yield
+    finally:
+        training.TemporalModel = original
 
 
 def seconds_per_step(cfg, train, steps: int) -> float:
@@ -66,18 +97,20 @@ def main() -> None:
     results = json.loads(args.out.read_text()) if args.out.exists() else {}
     for name in args.candidates.split(","):
         cfg = replace(base, **ARCHITECTURES[name])
-        per_step = seconds_per_step(cfg, train, args.probe)
-        cfg = replace(cfg, steps=max(1, int(args.minutes * 60 / per_step)))
-        print(f"== {name}: {per_step:.3f} s a step, {cfg.steps} steps in {args.minutes:g} minutes", flush=True)
-        started = time.monotonic()
-        result = training.train_lifter(cfg, train, val, progress=True)
-        seconds = time.monotonic() - started
-        heldout = result.metrics["heldout"]
-        later_result = training.evaluate(result.model, later, cfg)["heldout"] if later else None
+        with architecture(name, cfg.chunk):
+            per_step = seconds_per_step(cfg, train, args.probe)
+            cfg = replace(cfg, steps=max(1, int(args.minutes * 60 / per_step)))
+            print(f"== {name}: {per_step:.3f} s a step, {cfg.steps} steps in {args.minutes:g} minutes", flush=True)
+            started = time.monotonic()
+            result = training.train_lifter(cfg, train, val, progress=True)
+            seconds = time.monotonic() - started
+            heldout = result.metrics["heldout"]
+            later_result = training.evaluate(result.model, later, cfg)["heldout"] if later else None
         results[name] = {"minutes_budget": args.minutes, "seconds_per_step": round(per_step, 4),
                          "steps": cfg.steps, "seconds_with_evaluation": round(seconds, 1),
                          "train_seconds": result.metrics["train_seconds"],
                          "receptive_field": result.metrics["receptive_field"], "channels": cfg.channels,
+                         "parameters": sum(p.numel() for p in result.model.parameters()),
                          "profile": args.profile, "clean": heldout["clean"], "noisy": heldout["noisy"],
                          "sources": {k: {"clean": v["clean"], "noisy": v["noisy"]}
                                      for k, v in heldout["sources"].items()},
