@@ -131,3 +131,10 @@ def test_the_stages_carry_the_dancers_hands_from_2d_into_the_world_on_her_wrists
             seen = world.hands[:, side, list(chain)] - world.hands[:, side, chain[:1]]
             solved = again[:, list(chain)] - again[:, chain[:1]]
             assert np.abs(solved - seen).max() < 0.0015
+    # eval smpl reports the same, pooled: what a user runs on their own world files
+    from pipeline.motion.smpl.evaluate import evaluate, format_report, world_clips
+
+    result = evaluate(world_clips(project))
+    fingers = result["all"]["fingers"]
+    assert fingers["hands"] == 2 and fingers["worst_joint_median_mm"] < 15 and 0 <= fingers["past_range_share"] < 0.05
+    assert "fingers on SMPL-H (2 hands" in format_report(result)

@@ -15,6 +15,11 @@ offsets times the clip's scale) is compared with the joints it came from:
   bone in degrees, median and 95th percentile: the direction a trainer sees, whatever the two
   skeletons' bone lengths.
 
+- with hands (``pose2d.hands``), SMPL-H's fingers (``hands.retarget_hands``) posed again by forward
+  kinematics on the clip's own rest hands against the world hands, about the wrist: per joint the
+  distance in mm (median, 95th percentile and the worst joint's median), and the share of finger
+  joints bent past ``FINGER_RANGE_DEG``, which no finger joint reaches (the hand model's noise).
+
 Baseline beside the figures: the SMPL rest skeleton placed at each frame's hips with no rotation
 (what a trainer would get from an exporter that wrote no poses): its mapped-point error.
 
@@ -36,6 +41,7 @@ from pipeline.motion.smpl.proportions import own_offsets
 from pipeline.motion.smpl.retarget import SmplMotion, retarget
 
 LIMBS = ("knees", "ankles", "feet", "shoulders", "elbows", "wrists")
+FINGER_RANGE_DEG = 110.0  # about the largest active flexion of any finger joint (the PIP: 100-110 degrees)
 
 
 @dataclass(frozen=True)
@@ -46,6 +52,8 @@ class Clip:
     feet: np.ndarray | None       # T x 4 x 3
     standing: np.ndarray | None   # T x 4: ankles and balls standing (checks.foot_planted's order)
     fps: float
+    hands: np.ndarray | None = None     # T x 2 x 21 x 3 world hands (NaN: never seen)
+    presence: np.ndarray | None = None  # T x 2
 
 
 def world_clips(root: Path) -> list[Clip]:
@@ -58,7 +66,8 @@ def world_clips(root: Path) -> list[Clip]:
     for path in item_files(root / WORLD):
         fps = float(read_meta(path).get("fps", 24.0))
         for c in read_world(path):
-            out.append(Clip(path.stem, c.clip_id, c.joints, c.feet, checks.foot_planted(c.contact, c.planted), fps))
+            out.append(Clip(path.stem, c.clip_id, c.joints, c.feet, checks.foot_planted(c.contact, c.planted), fps,
+                            c.hands, c.hand_presence))
     return out
 
 
@@ -84,6 +93,28 @@ def _rest_at_hips(smpl: SmplMotion) -> np.ndarray:
     return forward(np.broadcast_to(np.eye(3), (frames, 24, 3, 3)), smpl.trans, smpl.scale)
 
 
+def finger_errors(smpl: SmplMotion, hands: np.ndarray, presence: np.ndarray) -> dict | None:
+    """SMPL-H's fingers solved and posed again against the world hands (T x 2 x 21 x 3): per seen
+    hand, the distance of each of its 20 points beyond the wrist (T x 20, metres, about the wrist),
+    and every finger joint's angle (degrees); None without a seen hand."""
+    from scipy.spatial.transform import Rotation
+
+    from pipeline.motion.smpl.hands import hand_forward, retarget_hands
+    from pipeline.motion.smpl.kinematics import global_rotations
+
+    solved = retarget_hands(smpl.local, hands, presence)
+    glob = global_rotations(solved.local)
+    errors, angles = [], []
+    for side, rest in enumerate(solved.rests):
+        if rest is None:
+            continue
+        fingers = solved.fingers[:, 15 * side: 15 * side + 15]
+        again = hand_forward(hands[:, side, 0], glob[:, 20 + side], fingers, rest)
+        errors.append(np.linalg.norm(again - hands[:, side], axis=-1)[:, 1:])
+        angles.append(np.degrees(np.linalg.norm(Rotation.from_matrix(fingers.reshape(-1, 3, 3)).as_rotvec(), axis=-1)))
+    return {"errors": errors, "angles": np.concatenate(angles)} if errors else None
+
+
 def score_clip(clip: Clip) -> dict:
     smpl = retarget(clip.joints, clip.feet)
     errors = checks.joint_errors(smpl, clip.joints, clip.feet)
@@ -99,7 +130,8 @@ def score_clip(clip: Clip) -> dict:
            "sliding_before": checks.sliding(before, clip.standing, clip.fps) if before is not None else float("nan"),
            "sliding_after": checks.sliding(checks.foot_points(smpl), clip.standing, clip.fps)
            if before is not None else float("nan"),
-           "outside": {k: v for k, v in ranges.outside.items() if v}}
+           "outside": {k: v for k, v in ranges.outside.items() if v},
+           "fingers": None if clip.hands is None else finger_errors(smpl, clip.hands, clip.presence)}
     return row
 
 
@@ -127,6 +159,18 @@ def _directions(rows: list[dict]) -> dict:
     return out
 
 
+def _fingers(rows: list[dict]) -> dict | None:
+    """Pooled SMPL-H finger figures over the rows' seen hands."""
+    hands = [e for r in rows if r.get("fingers") for e in r["fingers"]["errors"]]
+    if not hands:
+        return None
+    angles = np.concatenate([r["fingers"]["angles"] for r in rows if r.get("fingers")])
+    worst = max(float(np.median(e, axis=0).max()) for e in hands)
+    return {"hands": len(hands), **_figures(1000 * np.concatenate([e.ravel() for e in hands])),
+            "worst_joint_median_mm": round(1000 * worst, 1),
+            "past_range_share": round(float(np.mean(angles > FINGER_RANGE_DEG)), 4)}
+
+
 def summarise(rows: list[dict]) -> dict:
     """Pooled errors, sliding and range counts over ``rows``."""
     frames = sum(r["frames"] for r in rows)
@@ -144,7 +188,8 @@ def summarise(rows: list[dict]) -> dict:
             "error_own_proportions": _pooled(rows, "own_proportions"),
             "limb_direction_deg": _directions(rows),
             "sliding_before_mm": mean("sliding_before"), "sliding_after_mm": mean("sliding_after"),
-            "frames_outside_range": outside, "scale_median": round(float(np.median([r["scale"] for r in rows])), 4)}
+            "frames_outside_range": outside, "scale_median": round(float(np.median([r["scale"] for r in rows])), 4),
+            "fingers": _fingers(rows)}
 
 
 def evaluate(clips: list[Clip]) -> dict:
@@ -188,6 +233,12 @@ def format_report(result: dict) -> str:
     lines.append("limb directions (all clips): the SMPL bone's angle from the world bone, median / p95 degrees")
     for name, d in result["all"]["limb_direction_deg"].items():
         lines.append(f"  {name:16s} {d['median_deg']:7.1f} {d['p95_deg']:7.1f}")
+    fingers = result["all"].get("fingers")
+    if fingers:
+        lines.append(f"fingers on SMPL-H ({fingers['hands']} hands, about the wrist, against the world hands): "
+                     f"{fingers['median_mm']:.1f} / {fingers['p95_mm']:.1f} mm median / p95, the worst joint's median "
+                     f"{fingers['worst_joint_median_mm']:.1f} mm; {100 * fingers['past_range_share']:.1f} % of finger "
+                     f"joints bent past {FINGER_RANGE_DEG:g} degrees")
     if result["all"]["frames_outside_range"]:
         lines.append("frames outside range: " + ", ".join(f"{k} {v}" for k, v in
                                                           result["all"]["frames_outside_range"].items()))
