@@ -24,9 +24,10 @@ import csv
 import hashlib
 import pickle
 import shutil
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
@@ -129,7 +130,6 @@ def write_wav(path: Path, flac: Path, start: float, seconds: float) -> None:
 def export(root: Path, out: Path, val_fraction: float, fps: float = AIST_FPS, genre: str = "DN") -> list[Sequence]:
     """Write the AIST++ layout of the corpus under ``out``; the sequences written."""
     sequences = corpus_sequences(root, val_fraction, fps, genre)
-    ledger = {r["video_id"]: r for r in read_ledger(root / RAW).values()}
     for folder in ("motions", "wavs", "all_musics", "splits"):
         (out / folder).mkdir(parents=True, exist_ok=True)
     for seq in sequences:
@@ -145,13 +145,21 @@ def export(root: Path, out: Path, val_fraction: float, fps: float = AIST_FPS, ge
             (out / "splits" / name).write_text("".join(f"{n}\n" for n in names))
     (out / "ignore_list.txt").write_text("")
     (out / "splits" / "ignore_list.txt").write_text("")
-    with atomic_path(out / "names.csv") as tmp, open(tmp, "w", newline="") as f:
+    write_names(root, out / "names.csv", sequences, ("frames", "fps", "smpl_scaling"),
+                lambda s: (len(s.poses), f"{s.fps:g}", f"{s.scaling:.6f}"))
+    return sequences
+
+
+def write_names(root: Path, path: Path, sequences: list, columns: tuple[str, ...],
+                values: Callable[[Any], tuple]) -> None:
+    """An export's ``names.csv``: each sequence's name, clip, segment, video, split and start time,
+    then its ``columns`` (``values(sequence)``), then its video's url and licence from the ledger."""
+    ledger = {r["video_id"]: r for r in read_ledger(root / RAW).values()}
+    with atomic_path(path) as tmp, open(tmp, "w", newline="") as f:
         writer = csv.writer(f)
-        writer.writerow(["sequence", "clip_id", "segment_id", "video_id", "split", "start_time", "frames", "fps",
-                         "smpl_scaling", "url", "licence"])
+        writer.writerow(["sequence", "clip_id", "segment_id", "video_id", "split", "start_time", *columns, "url",
+                         "licence"])
         for s in sorted(sequences, key=lambda s: s.name):
             video = ledger.get(s.video_id, {})
-            writer.writerow([s.name, s.clip_id, s.segment_id, s.video_id, s.split, f"{s.start_time:.6f}",
-                             len(s.poses), f"{s.fps:g}", f"{s.scaling:.6f}", video.get("url", ""),
-                             video.get("licence", "")])
-    return sequences
+            writer.writerow([s.name, s.clip_id, s.segment_id, s.video_id, s.split, f"{s.start_time:.6f}", *values(s),
+                             video.get("url", ""), video.get("licence", "")])

@@ -31,19 +31,16 @@ Names: ``d3d`` and eight hex digits of the clip id, stable. None holds a capital
 
 from __future__ import annotations
 
-import csv
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from pipeline.core.paths import RAW
 from pipeline.core.storage import atomic_path
 from pipeline.corpus.windows import split_of
-from pipeline.export.aistpp import resample, retargeted_segments
+from pipeline.export.aistpp import resample, retargeted_segments, write_names
 from pipeline.export.edge import EDGE_FPS, segment_music
-from pipeline.ingest.catalog import read_ledger
 from pipeline.motion.smpl.hands import retarget_hands, template_rest
 from pipeline.motion.smpl.kinematics import from_axis_angle, to_6d_rows, to_axis_angle
 
@@ -72,14 +69,13 @@ def smplh_poses(clip, template: np.ndarray | None) -> tuple[np.ndarray, bool]:
     """T x 156 SMPL-H axis-angle (22 body joints, 30 finger joints) of a world clip, its fingers
     relative to the clip's own rest hands or, with ``template``, to the template's; and whether it
     has hands."""
-    local = from_axis_angle(clip.smpl_poses)
     seen = clip.hands is not None and clip.smpl_hand_poses is not None and np.isfinite(clip.smpl_hand_poses).all()
     if not seen:
-        return np.concatenate([clip.smpl_poses[:, :66], np.zeros((len(local), 90))], axis=1), False
+        return np.concatenate([clip.smpl_poses[:, :66], np.zeros((len(clip.smpl_poses), 90))], axis=1), False
     if template is None:
         return np.concatenate([clip.smpl_poses[:, :66], clip.smpl_hand_poses], axis=1), True
     rests = (template_rest(template, 0), template_rest(template, 1))
-    solved = retarget_hands(local, clip.hands, clip.hand_presence, rests)
+    solved = retarget_hands(from_axis_angle(clip.smpl_poses), clip.hands, clip.hand_presence, rests)
     return np.concatenate([to_axis_angle(solved.local)[:, :66], solved.poses], axis=1), True
 
 
@@ -101,7 +97,6 @@ def export(root: Path, out: Path, val_fraction: float, template: np.ndarray | No
         template_rest(template, 0)  # refuse a template of the wrong shape before writing anything
     for folder in FOLDERS:
         (out / folder).mkdir(parents=True, exist_ok=True)
-    ledger = {r["video_id"]: r for r in read_ledger(root / RAW).values()}
     written: list[FineDanceSequence] = []
     for world_file, seg, rate, clips in retargeted_segments(root):
         if not clips:
@@ -132,15 +127,8 @@ def export(root: Path, out: Path, val_fraction: float, template: np.ndarray | No
     for split, file in SPLITS.items():
         (out / "splits" / file).write_text("".join(f"{s.name}\n" for s in sorted(written, key=lambda s: s.name)
                                                    if s.split == split))
-    with atomic_path(out / "names.csv") as tmp, open(tmp, "w", newline="") as f:
-        writer = csv.writer(f)
-        writer.writerow(["sequence", "clip_id", "segment_id", "video_id", "split", "start_time", "frames", "fps",
-                         "hands", "url", "licence"])
-        for s in sorted(written, key=lambda s: s.name):
-            video = ledger.get(s.video_id, {})
-            writer.writerow([s.name, s.clip_id, s.segment_id, s.video_id, s.split, f"{s.start_time:.6f}",
-                             len(s.motion), f"{FINEDANCE_FPS:g}", "yes" if s.hands else "no",
-                             video.get("url", ""), video.get("licence", "")])
+    write_names(root, out / "names.csv", written, ("frames", "fps", "hands"),
+                lambda s: (len(s.motion), f"{FINEDANCE_FPS:g}", "yes" if s.hands else "no"))
     return written
 
 

@@ -17,6 +17,7 @@ from pipeline.motion.smpl.hands import (
     template_rest,
 )
 from pipeline.motion.smpl.kinematics import global_rotations
+from pipeline.motion.smpl.retarget import frame
 from pipeline.motion.smpl.skeleton import rest_positions
 
 
@@ -39,7 +40,7 @@ def _posed(rest, wrist_rotation: np.ndarray, frames: int, seed: int) -> tuple[np
     """A hand's points (T x 21 x 3) and its finger rotations: each joint bent about the hand's side
     axis by up to 80 degrees, plus a little sideways."""
     rng = np.random.default_rng(seed)
-    side_axis = rest.frame[:, 1]
+    side_axis = frame(rest.knuckles[1], rest.knuckles[0] - rest.knuckles[2])[:, 1]  # the hand's sideways axis
     bend = Rotation.from_rotvec(np.radians(rng.uniform(0, 80, (frames * 15, 1))) * side_axis
                                 + np.radians(rng.normal(0, 5, (frames * 15, 3)))).as_matrix()
     fingers = bend.reshape(frames, 15, 3, 3)

@@ -21,9 +21,9 @@ right along -x, palms down, thumbs forward). Two rest hands:
   to exactly that rest pose.
 
 The solve, per hand and frame: the wrist turns the rest palm onto the seen one (the five knuckles
-as near as one rotation puts them: SMPL-H's palm is rigid, the seen one cups), then each finger joint swings
-its bone onto the seen bone by the smallest rotation, from the knuckle to the tip, so no finger
-gains a twist of its own.
+as near as one rotation puts them: SMPL-H's palm is rigid, the seen one cups), then each finger
+joint swings its bone onto the seen bone by the smallest rotation, from the knuckle to the tip, so
+no finger gains a twist of its own.
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.motion.mocap.skeleton import unit
+from pipeline.motion.smpl.retarget import frame, swing
 from pipeline.motion.smpl.skeleton import JOINTS, PARENTS
 from pipeline.pose.hands import MIN_PRESENCE
 
@@ -59,18 +60,6 @@ class RestHand:
     bones: np.ndarray     # 5 x 3 x 3 unit directions of each finger's bones: to its second, third joint, tip
     lengths: np.ndarray   # 5 x 3 those bones' lengths
 
-    @property
-    def frame(self) -> np.ndarray:
-        """3 x 3: the hand's own axes at rest (to the middle knuckle; towards the index, square to it)."""
-        return _frame(self.knuckles[1], self.knuckles[0] - self.knuckles[2])
-
-
-def _frame(long: np.ndarray, side: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) frames with columns: ``long``, ``side`` made square to it, and their cross product."""
-    a = unit(np.asarray(long, np.float64))
-    b = np.asarray(side, np.float64)
-    b = unit(b - (b * a).sum(-1, keepdims=True) * a)
-    return np.stack([a, b, np.cross(a, b)], axis=-1)
 
 
 def _chain_points(hand: np.ndarray) -> np.ndarray:
@@ -87,23 +76,27 @@ def clip_rest(hand: np.ndarray, presence: np.ndarray, side: int, min_presence: f
     if not sure.any():
         sure = np.ones(len(points), bool)
     chains = _chain_points(points[sure]) - points[sure, None, None, 0]       # S x 5 x 4 x 3
-    seen = _frame(chains[:, 1, 0], chains[:, 0, 0] - chains[:, 2, 0])       # S x 3 x 3
+    seen = frame(chains[:, 1, 0], chains[:, 0, 0] - chains[:, 2, 0])       # S x 3 x 3
     palm = np.median(np.einsum("sji,sfj->sfi", seen, chains[:, :, 0]), axis=0)  # 5 x 3 in the hand's frame
     for _ in range(PALM_ROUNDS):  # the mean palm each frame's best rotation brings back (Procrustes)
         turn = _best_rotation(palm, chains[:, :, 0])
         palm = np.einsum("sji,sfj->sfi", turn, chains[:, :, 0]).mean(axis=0)
-    palm = palm @ _frame(palm[1], palm[0] - palm[2])  # back in the hand's own frame
-    rest_frame = _frame(_LONG[side], _SIDE)
+    palm = palm @ frame(palm[1], palm[0] - palm[2])  # back in the hand's own frame
+    rest_frame = frame(_LONG[side], _SIDE)
     knuckles = palm @ rest_frame.T
-    lengths = np.median(np.linalg.norm(np.diff(chains, axis=2), axis=-1), axis=0)  # 5 x 3
-    bones = np.repeat(unit(knuckles)[:, None], 3, axis=1)
-    return RestHand(knuckles, bones, lengths)
+    return straight_rest(knuckles, np.median(np.linalg.norm(np.diff(chains, axis=2), axis=-1), axis=0))
 
 
-def template_rest(joints: np.ndarray, side: int, lengths: np.ndarray | None = None) -> RestHand:
+def straight_rest(knuckles: np.ndarray, lengths: np.ndarray) -> RestHand:
+    """dance3d's rest hand on ``knuckles`` (5 x 3): every finger straight on from its knuckle, the
+    line from the wrist through it, its bones ``lengths`` (5 x 3) long."""
+    knuckles = np.asarray(knuckles, np.float64)
+    return RestHand(knuckles, np.repeat(unit(knuckles)[:, None], 3, axis=1), np.asarray(lengths, np.float64))
+
+
+def template_rest(joints: np.ndarray, side: int) -> RestHand:
     """The rest hand of a template's joints (52 x 3 in SMPL-H's order, or 55 x 3 in SMPL-X's: the
-    jaw and eyes after the wrists); its fingertips carry the last bone on. ``lengths`` (5 x 3):
-    the bones' lengths instead of the template's (a clip's own)."""
+    jaw and eyes after the wrists); its fingertips carry the last bone on."""
     j = np.asarray(joints, np.float64)
     if j.shape not in ((52, 3), (55, 3)):
         raise ValueError(f"a joint template is 52 x 3 (SMPL-H) or 55 x 3 (SMPL-X), not {' x '.join(map(str, j.shape))}")
@@ -111,8 +104,7 @@ def template_rest(joints: np.ndarray, side: int, lengths: np.ndarray | None = No
     fingers = j[first + 15 * side: first + 15 * (side + 1)].reshape(5, 3, 3) - j[SMPL_WRISTS[side]]
     bones = np.diff(fingers, axis=1)                                         # 5 x 2 x 3
     bones = np.concatenate([bones, bones[:, -1:]], axis=1)                   # the last bone points on
-    own = np.linalg.norm(bones, axis=-1)
-    return RestHand(fingers[:, 0], unit(bones), own if lengths is None else np.asarray(lengths, np.float64))
+    return RestHand(fingers[:, 0], unit(bones), np.linalg.norm(bones, axis=-1))
 
 
 def _best_rotation(rest: np.ndarray, seen: np.ndarray) -> np.ndarray:
@@ -125,16 +117,6 @@ def _best_rotation(rest: np.ndarray, seen: np.ndarray) -> np.ndarray:
     return np.swapaxes(vt, -1, -2) @ fix @ np.swapaxes(u, -1, -2)
 
 
-def _swing(have: np.ndarray, want: np.ndarray) -> np.ndarray:
-    """T x 3 x 3 smallest rotations taking the vectors ``have`` to the directions ``want``."""
-    from scipy.spatial.transform import Rotation
-
-    have, want = unit(have), unit(want)
-    axis = np.cross(have, want)
-    angle = np.arctan2(np.linalg.norm(axis, axis=-1), (have * want).sum(-1))
-    return Rotation.from_rotvec(unit(axis) * angle[:, None]).as_matrix()
-
-
 def solve_hand(hand: np.ndarray, rest: RestHand, parent: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(T x 3 x 3 the wrist's local rotation, T x 15 x 3 x 3 the fingers' local rotations) that put
     ``rest`` on the world ``hand`` (T x 21 x 3); ``parent``: the elbow's world rotations (T x 3 x 3)."""
@@ -145,7 +127,7 @@ def solve_hand(hand: np.ndarray, rest: RestHand, parent: np.ndarray) -> tuple[np
     for f in range(5):
         above = wrist
         for k in range(3):
-            turned = _swing(above @ rest.bones[f, k], chains[:, f, k + 1] - chains[:, f, k]) @ above
+            turned = swing(above @ rest.bones[f, k], chains[:, f, k + 1] - chains[:, f, k]) @ above
             local[:, 3 * f + k] = np.swapaxes(above, -1, -2) @ turned
             above = turned
     return np.swapaxes(parent, -1, -2) @ wrist, local
@@ -220,9 +202,7 @@ def rests_from_facts(facts: dict) -> tuple[RestHand | None, RestHand | None]:
         if fact is None:
             out.append(None)
             continue
-        knuckles = np.asarray(fact["knuckles"], np.float64)
-        out.append(RestHand(knuckles, np.repeat(unit(knuckles)[:, None], 3, axis=1),
-                            np.asarray(fact["lengths"], np.float64)))
+        out.append(straight_rest(fact["knuckles"], fact["lengths"]))
     return out[0], out[1]
 
 

@@ -69,7 +69,7 @@ def _square(v: np.ndarray, to: np.ndarray) -> np.ndarray:
     return unit(v - (v * to).sum(-1, keepdims=True) * to)
 
 
-def _frame(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def frame(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(..., 3, 3) orthonormal frames with columns a, b made square to a, and a x b."""
     a = unit(np.asarray(a, np.float64))
     b = _square(np.asarray(b, np.float64), a)
@@ -78,7 +78,7 @@ def _frame(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _aligning(rest_a: np.ndarray, rest_b: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """T x 3 x 3 rotations taking the rest pair (a along, b beside) to each target pair."""
-    return _frame(a, b) @ np.swapaxes(_frame(rest_a, rest_b), -1, -2)
+    return frame(a, b) @ np.swapaxes(frame(rest_a, rest_b), -1, -2)
 
 
 def _power(rotations: np.ndarray, share: float) -> np.ndarray:
@@ -173,14 +173,14 @@ def retarget(joints: np.ndarray, feet: np.ndarray | None = None, offsets: np.nda
     for j in (3, 6, 9, 13, 14):
         glob[:, j] = glob[:, PARENTS[j]] @ step if j in (3, 6, 9) else glob[:, 9]
     place(6, 9, 13, 14, 16, 17)
-    swing = _swing((pos[:, 16] + pos[:, 17]) / 2 - pos[:, 3], (h[:, 11] + h[:, 14]) / 2 - pos[:, 3])
+    turn = swing((pos[:, 16] + pos[:, 17]) / 2 - pos[:, 3], (h[:, 11] + h[:, 14]) / 2 - pos[:, 3])
     for j in (3, 6, 9):
-        glob[:, j] = swing @ glob[:, j]
+        glob[:, j] = turn @ glob[:, j]
     place(6, 9, 12, 13, 14)
 
     # Collars swing their shoulders towards the clip's; the neck looks where the head does.
     for collar, shoulder, target in ((13, 16, 11), (14, 17, 14)):
-        glob[:, collar] = _swing(glob[:, 9] @ o[shoulder], h[:, target] - pos[:, collar], COLLAR_DEG) @ glob[:, 9]
+        glob[:, collar] = swing(glob[:, 9] @ o[shoulder], h[:, target] - pos[:, collar], COLLAR_DEG) @ glob[:, 9]
         place(shoulder)
     glob[:, 12] = glob[:, 15] = _aligning(_Y, _Z, h[:, 10] - h[:, 8], glob[:, 9] @ _Z)
     place(15)
@@ -200,7 +200,7 @@ def retarget(joints: np.ndarray, feet: np.ndarray | None = None, offsets: np.nda
         # The neutral hinge where the limb points now: the rest hinge carried by the smallest turn
         # from the limb's rest direction (as its parent holds it) to its direction now.
         rest_along = glob[:, PARENTS[root]] @ unit(o[middle] + o[end])
-        neutral = (_swing(rest_along, along) @ above[..., None])[..., 0]
+        neutral = (swing(rest_along, along) @ above[..., None])[..., 0]
         hinge = limit_twist(hinge, neutral, along, TWIST_DEG["leg" if leg else "arm"])
         if leg:  # the ankle exactly where it was: feet stand and slide on it
             mid, tip = two_bone(pos[:, root], h[:, end_t], hinge, scale * np.linalg.norm(o[middle]),
@@ -220,7 +220,7 @@ def retarget(joints: np.ndarray, feet: np.ndarray | None = None, offsets: np.nda
         for ankle, target, heel, toe in ((7, 6, 0, 2), (8, 3, 1, 3)):
             ball = f[:, heel] + BALL_SHARE * (f[:, toe] - f[:, heel])
             rest_foot = glob[:, ankle - 3] @ unit(o[ankle + 3])  # where the foot points at rest, from the shin
-            aim = (_swing(rest_foot, ball - pos[:, ankle], ANKLE_DEG) @ rest_foot[..., None])[..., 0]
+            aim = (swing(rest_foot, ball - pos[:, ankle], ANKLE_DEG) @ rest_foot[..., None])[..., 0]
             glob[:, ankle] = _aligning(o[ankle + 3], _X, aim, glob[:, ankle - 3] @ _X)
     for j, p in ((10, 7), (11, 8), (22, 20), (23, 21)):
         glob[:, j] = glob[:, p]
@@ -231,7 +231,7 @@ def retarget(joints: np.ndarray, feet: np.ndarray | None = None, offsets: np.nda
     return SmplMotion(local, trans, scale, forward(local, trans, scale, o))
 
 
-def _swing(have: np.ndarray, want: np.ndarray, most: float = 180.0) -> np.ndarray:
+def swing(have: np.ndarray, want: np.ndarray, most: float = 180.0) -> np.ndarray:
     """T x 3 x 3 smallest rotations taking each vector ``have`` to the direction of ``want``, or
     ``most`` degrees of the way there (``mocap.skeleton.smallest_rotation`` takes one rest vector)."""
     from scipy.spatial.transform import Rotation

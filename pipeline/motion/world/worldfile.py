@@ -87,7 +87,7 @@ def world_clip(clip_id: str, track_id: int, frame: np.ndarray, time: np.ndarray,
     from pipeline.motion.smpl.retarget import retarget
 
     smpl = retarget(grounded.joints, grounded.feet)
-    poses, hand_poses = smpl.poses, None
+    local, hand_poses = smpl.local, None
     facts = {"bone_lengths": [round(float(x), 6) for x in grounded.bone_lengths],
              "pitch_deg": round(grounded.pitch_deg, 2), "roll_deg": round(grounded.roll_deg, 2),
              "bone_cv_before": round(grounded.cv_before, 5), "fit_moved_mm": round(1000 * grounded.fit_moved, 2),
@@ -98,11 +98,11 @@ def world_clip(clip_id: str, track_id: int, frame: np.ndarray, time: np.ndarray,
     if hands is not None:
         hands = world_hands(hands, hand_presence, grounded.camera.rotation, grounded.joints[:, list(H36M_WRISTS)])
         fingers = retarget_hands(smpl.local, hands, hand_presence)
-        poses, hand_poses = to_axis_angle(fingers.local), fingers.poses
+        local, hand_poses = fingers.local, fingers.poses
         facts["smpl_hands"] = rest_facts(fingers.rests)
     return WorldClip(clip_id, track_id, frame, time, grounded.joints, grounded.feet, grounded.contact,
                      grounded.planted, grounded.contact_probability, grounded.rotations_6d, facts,
-                     poses, smpl.trans, hands, hand_presence, hand_poses)
+                     to_axis_angle(local), smpl.trans, hands, hand_presence, hand_poses)
 
 
 def _table(clips: list[WorldClip]) -> pa.Table:
