@@ -58,9 +58,18 @@ def render_qc(root: Path, args: argparse.Namespace) -> int:
 
 
 def clip_of(motion: Path, clip_id: str):
-    """One clip of a motion file, or None after saying which clips there are."""
+    """One clip of a motion file, or None after saying which clips there are (or what the file is instead)."""
+    import pyarrow.parquet as pq
+
     from pipeline.motion.motionfile import read_clips
 
+    columns = set(pq.read_schema(motion).names)
+    if "joints" not in columns or "interpolated" not in columns:
+        what = ("is a world file (data/world): draw it with --smpl, or give its segment's data/motion24 file"
+                if "smpl_poses" in columns else
+                "is not a motion file (data/pose3d, data/smooth or data/motion24): it has no joints column")
+        print(f"dance3d: {motion}: {what}", file=sys.stderr)
+        return None
     clips = {c.clip_id: c for c in read_clips(motion)}
     if clip_id not in clips:
         print(f"dance3d: {motion}: no clip {clip_id!r}; clips: {', '.join(clips) or 'none'}", file=sys.stderr)

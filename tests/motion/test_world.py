@@ -236,3 +236,20 @@ def test_with_heels_and_toes_the_floor_is_under_the_feet_and_a_foot_on_its_ball_
         heel_len = np.linalg.norm(grounded.feet[:, side] - grounded.joints[:, ankle], axis=-1)
         truth = np.linalg.norm(feet[:, side] - joints[:, ankle], axis=-1)
         assert np.abs(np.median(heel_len) - np.median(truth)) < 0.01
+
+
+def test_render_given_a_world_file_without_smpl_says_which_file_to_give(tmp_path: Path, capsys) -> None:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    world = tmp_path / "vid_000.parquet"
+    pq.write_table(pa.table({"clip_id": ["vid_000_1_0"], "smpl_poses": [[0.0] * 72]}), world)
+    other = tmp_path / "other.parquet"
+    pq.write_table(pa.table({"clip_id": ["vid_000_1_0"], "x": [1.0]}), other)
+    assert main(["render", str(world), "vid_000_1_0", str(tmp_path / "w.mp4"), "--world"]) == 2
+    err = capsys.readouterr().err
+    assert str(world) in err and "world file" in err and "--smpl" in err and "data/motion24" in err
+    assert "Traceback" not in err and "KeyError" not in err
+    assert main(["render", str(other), "vid_000_1_0", str(tmp_path / "w.mp4")]) == 2
+    err = capsys.readouterr().err
+    assert str(other) in err and "not a motion file" in err and "joints" in err
