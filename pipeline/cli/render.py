@@ -63,7 +63,10 @@ def clip_of(motion: Path, clip_id: str):
 
     from pipeline.motion.motionfile import read_clips
 
-    columns = set(pq.read_schema(motion).names)
+    try:
+        columns = set(pq.read_schema(motion).names)
+    except (OSError, ValueError) as exc:  # pyarrow's ArrowInvalid (a ValueError) does not name the file
+        raise InputError(motion, f"not a Parquet file ({exc})") from None
     if "joints" not in columns or "interpolated" not in columns:
         what = ("is a world file (data/world): draw it with --smpl, or give its segment's data/motion24 file"
                 if "smpl_poses" in columns else

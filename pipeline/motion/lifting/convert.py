@@ -85,3 +85,49 @@ def convert_videopose3d(checkpoint: Path, out: Path) -> TemporalModel:
     model = model_from_state(load_official_state(Path(checkpoint)), checkpoint)
     export_onnx(model, out, {"converted_from": Path(checkpoint).name})
     return model
+
+
+def model_from_onnx(path: Path) -> TemporalModel:
+    """A lifter ONNX exported by dance3d back as a ``TemporalModel`` with the same outputs.
+
+    The export folds each batch norm into the convolution before it, so the convolutions take the
+    ONNX's weights and biases and every batch norm becomes the identity (mean 0, variance 1 - eps):
+    exact in evaluation mode. Fine-tuning such a model must keep its batch norms in evaluation mode
+    (``freeze_batch_norm``), since their batch statistics are gone."""
+    import onnx
+    from onnx import numpy_helper
+
+    try:
+        proto = onnx.load(str(path))
+    except Exception as exc:
+        raise InputError(path, f"cannot read the ONNX ({type(exc).__name__}: {exc})") from None
+    meta = {p.key: p.value for p in proto.metadata_props}
+    if "filter_widths" not in meta:
+        raise InputError(path, "no filter_widths in the ONNX metadata: not a lifter exported by dance3d")
+    weights = {i.name: torch.from_numpy(numpy_helper.to_array(i).copy()) for i in proto.graph.initializer}
+    convs = [(weights[n.input[1]], weights[n.input[2]]) for n in proto.graph.node
+             if n.op_type == "Conv" and len(n.input) == 3]
+    widths = tuple(int(w) for w in meta["filter_widths"].split(","))
+    expand, shrink = convs[0][0], convs[-1][0]
+    model = TemporalModel(expand.shape[1] // 2, shrink.shape[0] // 3, widths, expand.shape[0], 0.0)
+    blocks = [(model.expand_conv, model.expand_bn), *zip(model.layers_conv, model.layers_bn)]
+    if len(convs) != len(blocks) + 1:
+        raise InputError(path, f"{len(convs)} convolutions in the ONNX; filter widths {widths} imply {len(blocks) + 1}")
+    with torch.no_grad():
+        for (conv, bn), (weight, bias) in zip(blocks, convs):
+            conv.weight.copy_(weight)
+            bn.weight.fill_(1.0)
+            bn.bias.copy_(bias)
+            bn.running_mean.zero_()
+            bn.running_var.fill_(1.0 - bn.eps)
+        model.shrink.weight.copy_(shrink)
+        model.shrink.bias.copy_(convs[-1][1])
+    model.eval()
+    return model
+
+
+def freeze_batch_norm(model: torch.nn.Module) -> None:
+    """Batch norms in evaluation mode (running statistics, no updates) while the rest trains."""
+    for module in model.modules():
+        if isinstance(module, torch.nn.BatchNorm1d):
+            module.eval()
