@@ -23,6 +23,23 @@ from pipeline.core.storage import write_json
 from stages.train_lifter import config_from_params
 
 
+def profile_run(profile: str, mocap: Path, checkpoint: Path | None = None):
+    """A train_lifter profile of params.yaml as its training sees it: (config, training sequences,
+    the 40 held-out ones, the later sources' held-out takes, the checkpoint file, which must exist)."""
+    from pipeline.motion.lifting.evaluate import held_out_later, split
+    from pipeline.motion.lifting.train import checkpoint_path, default_checkpoints, load_mocap
+
+    params = with_profile({**stage_params(load_params(Path("params.yaml")), "train_lifter"), "profile": profile},
+                          "train_lifter")
+    cfg = config_from_params(params)
+    sequences = load_mocap(mocap, cfg)
+    train, val = split(sequences, cfg.holdout)
+    checkpoint = checkpoint or checkpoint_path(default_checkpoints(), cfg, train)
+    if not checkpoint.is_file():
+        raise SystemExit(f"{checkpoint}: no checkpoint for profile {profile} (run train_lifter with it first)")
+    return cfg, train, val, held_out_later(sequences), checkpoint
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--profile", default="long", help="a train_lifter profile of params.yaml (default long)")
@@ -33,21 +50,12 @@ def main() -> None:
 
     import torch
 
-    from pipeline.motion.lifting.evaluate import evaluate_lifter, held_out_later, split
+    from pipeline.motion.lifting.evaluate import evaluate_lifter
     from pipeline.motion.lifting.infer import Lifter, load_lifter
     from pipeline.motion.lifting.model import TemporalModel
-    from pipeline.motion.lifting.train import checkpoint_path, default_checkpoints, load_mocap
     from pipeline.motion.shipped import SHIPPED_LIFTER
 
-    params = with_profile({**stage_params(load_params(Path("params.yaml")), "train_lifter"), "profile": args.profile},
-                          "train_lifter")
-    cfg = config_from_params(params)
-    sequences = load_mocap(args.mocap, cfg)
-    train, val = split(sequences, cfg.holdout)
-    later = held_out_later(sequences)
-    checkpoint = args.checkpoint or checkpoint_path(default_checkpoints(), cfg, train)
-    if not checkpoint.is_file():
-        raise SystemExit(f"{checkpoint}: no checkpoint for profile {args.profile} (run train_lifter with it first)")
+    cfg, train, val, later, checkpoint = profile_run(args.profile, args.mocap, args.checkpoint)
     state = torch.load(checkpoint, weights_only=False)
     joints = 21 if cfg.feet else 17
     model = TemporalModel(joints, joints, cfg.filter_widths, cfg.channels, cfg.dropout)
