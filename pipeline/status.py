@@ -72,7 +72,7 @@ def summarise(root: Path) -> str:
         shards = sorted((root / CORPUS / split).glob("shard-*.parquet"))
         if shards:
             windows = sum(pq.read_metadata(p).num_rows for p in shards)
-            lines.append(f"corpus {split}: {windows} windows in {len(shards)} shards")
+            lines.append(f"corpus {split}: {windows} windows in {len(shards)} shard{'s' * (len(shards) != 1)}")
     for failures in sorted((root / "data").glob(f"*/{FAILURES_FILE}")) if (root / "data").exists() else []:
         rows = read_failures(failures.parent)
         if rows:

@@ -11,7 +11,8 @@ from pipeline.core.errors import Dance3dError
 
 
 def add_export(sub: argparse._SubParsersAction) -> None:
-    export = sub.add_parser("export", help="export motion for animation tools (bvh) and trainers (aistpp)")
+    export = sub.add_parser("export", help="export motion for animation tools (bvh) and trainers "
+                                           "(aistpp, edge, finedance, gdance)")
     export_sub = export.add_subparsers(dest="format", required=True, metavar="FORMAT")
     bvh = export_sub.add_parser(
         "bvh", help="one clip as a BVH file (world frame, y up, metres, one skeleton)",
