@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from pipeline.cli.messages import complain, say
-from pipeline.cli.render import clip_of, world_clip_of
+from pipeline.cli.render import clip_of, motion_clips, world_clip_of
 from pipeline.core.errors import Dance3dError
 
 
@@ -98,7 +98,6 @@ def export_bvh(root: Path, args: argparse.Namespace) -> int:
 
 def _export_world_bvh(args: argparse.Namespace) -> int:
     from pipeline.core.storage import read_meta
-    from pipeline.motion.motionfile import read_clips
     from pipeline.motion.world.scene import ground_scene
 
     if args.all == (args.clip_id is not None):
@@ -106,7 +105,7 @@ def _export_world_bvh(args: argparse.Namespace) -> int:
     if args.clip_id is not None and clip_of(args.motion, args.clip_id) is None:
         return 2
     fps = float(read_meta(args.motion).get("fps", 24.0))
-    clips = read_clips(args.motion)
+    clips = motion_clips(args.motion)
     # The corpus's grounding: in the segment's scene, one skeleton, the contact-anchored root, feet on the floor.
     scene = ground_scene(clips, fps)
     if not args.all:

@@ -57,8 +57,9 @@ def render_qc(root: Path, args: argparse.Namespace) -> int:
     return 2 if failed else 0
 
 
-def clip_of(motion: Path, clip_id: str):
-    """One clip of a motion file, or None after saying which clips there are (or what the file is instead)."""
+def motion_clips(motion: Path) -> list:
+    """Every clip of a motion file (data/pose3d, data/smooth or data/motion24); another file is
+    refused with what it is and what to give instead."""
     import pyarrow.parquet as pq
 
     from pipeline.motion.motionfile import read_clips
@@ -68,12 +69,15 @@ def clip_of(motion: Path, clip_id: str):
     except (OSError, ValueError) as exc:  # pyarrow's ArrowInvalid (a ValueError) does not name the file
         raise InputError(motion, f"not a Parquet file ({exc})") from None
     if "joints" not in columns or "interpolated" not in columns:
-        what = ("is a world file (data/world): draw it with --smpl, or give its segment's data/motion24 file"
-                if "smpl_poses" in columns else
-                "is not a motion file (data/pose3d, data/smooth or data/motion24): it has no joints column")
-        print(f"dance3d: {motion}: {what}", file=sys.stderr)
-        return None
-    clips = {c.clip_id: c for c in read_clips(motion)}
+        raise InputError(motion, "is a world file (data/world): give it with --smpl, or give its segment's "
+                                 "data/motion24 file" if "smpl_poses" in columns else
+                         "is not a motion file (data/pose3d, data/smooth or data/motion24): it has no joints column")
+    return read_clips(motion)
+
+
+def clip_of(motion: Path, clip_id: str):
+    """One clip of a motion file, or None after saying which clips there are."""
+    clips = {c.clip_id: c for c in motion_clips(motion)}
     if clip_id not in clips:
         print(f"dance3d: {motion}: no clip {clip_id!r}; clips: {', '.join(clips) or 'none'}", file=sys.stderr)
     return clips.get(clip_id)

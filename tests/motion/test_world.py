@@ -238,7 +238,7 @@ def test_with_heels_and_toes_the_floor_is_under_the_feet_and_a_foot_on_its_ball_
         assert np.abs(np.median(heel_len) - np.median(truth)) < 0.01
 
 
-def test_render_given_a_world_file_without_smpl_says_which_file_to_give(tmp_path: Path, capsys) -> None:
+def test_render_and_export_given_a_world_file_without_smpl_say_which_file_to_give(tmp_path: Path, capsys) -> None:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -250,6 +250,9 @@ def test_render_given_a_world_file_without_smpl_says_which_file_to_give(tmp_path
     err = capsys.readouterr().err
     assert str(world) in err and "world file" in err and "--smpl" in err and "data/motion24" in err
     assert "Traceback" not in err and "KeyError" not in err
+    assert main(["export", "bvh", str(world), "--all", str(tmp_path / "bvh")]) == 2
+    err = capsys.readouterr().err
+    assert str(world) in err and "world file" in err and "Traceback" not in err and "KeyError" not in err
     assert main(["render", str(other), "vid_000_1_0", str(tmp_path / "w.mp4")]) == 2
     err = capsys.readouterr().err
     assert str(other) in err and "not a motion file" in err and "joints" in err
