@@ -36,6 +36,9 @@ def generate_dance(root: Path, args: argparse.Namespace) -> int:
 
     corpus = args.corpus if args.corpus.is_absolute() else root / args.corpus
     model_path = args.model if args.model.is_absolute() else root / args.model
+    if not model_path.is_file():
+        return complain(f"dance3d: {model_path}: no trained model; the train stage makes it (dvc repro train), "
+                        "or give one with --model")
     seed_row = next(iter(WindowDataset(corpus / "train", shuffle=False)), None) or \
         next(iter(WindowDataset(corpus / "val", shuffle=False)), None)
     if seed_row is None:

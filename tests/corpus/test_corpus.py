@@ -239,3 +239,11 @@ def test_the_loader_refuses_shards_of_another_schema_naming_the_file_and_the_fix
     with pytest.raises(InputError, match=rf"shard-00000.parquet: corpus schema 5, this dance3d reads schema "
                                          rf"{SCHEMA_VERSION}: rebuild the corpus with `dvc repro shard`"):
         WindowDataset(shard.parent)
+
+
+def test_sample_without_a_trained_model_says_which_stage_makes_one(tmp_path: Path, capsys) -> None:
+    from pipeline.cli import main
+
+    assert main(["--root", str(tmp_path), "sample", str(tmp_path / "song.ogg"), str(tmp_path / "out.parquet")]) == 2
+    err = capsys.readouterr().err
+    assert str(tmp_path / "models/tsmt.pt") in err and "train stage" in err and "--model" in err
