@@ -43,7 +43,6 @@ class AdaptConfig:
     lr_final: float = 1e-5
     reprojection_weight: float = 1.0   # 0 (with bone_weight 0): the supervised control
     bone_weight: float = 1.0
-    min_score: float = 0.3             # 2D joints below it are filled over time and weigh nothing
     seed: int = 1
     threads: int = 2
 
@@ -57,7 +56,8 @@ class VideoClip:
 
 
 def video_clips(clean_files: list[Path], min_score: float = 0.3, min_frames: int = 25) -> list[VideoClip]:
-    """The clips of the clean files (``data/clean``) with at least ``min_frames`` frames."""
+    """The clips of the clean files (``data/clean``) with at least ``min_frames`` frames; 2D joints
+    under ``min_score`` (the lift stage's default) are filled over time and weigh nothing."""
     from pipeline.annotate.clipfile import read_clean
 
     clips = []
