@@ -108,7 +108,7 @@ def main() -> None:
                         help="segment id prefix never adapted on, only scored (repeatable)")
     parser.add_argument("--steps", type=int, default=800)
     parser.add_argument("--variant", action="append", default=[],
-                        help="NAME:REPROJECTION:BONE weights of a run to make (repeatable; default "
+                        help="NAME:REPROJECTION:BONE[:VELOCITY] weights of a run to make (repeatable; default "
                              "supervised:0:0 and adapted:1:1); runs already in --out are kept")
     parser.add_argument("--mocap", type=Path, default=Path(os.environ.get("DANCE3D_MOCAP", "../shared/mocap")))
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results/lifter_adapt.json"))
@@ -143,8 +143,9 @@ def main() -> None:
     print(json.dumps(results["models"]["shipped"]["summary"]), flush=True)
     base = AdaptConfig(steps=args.steps)
     variants = [v.split(":") for v in args.variant or ("supervised:0:0", "adapted:1:1")]
-    for name, reprojection, bone in variants:
-        acfg = replace(base, reprojection_weight=float(reprojection), bone_weight=float(bone))
+    for name, reprojection, bone, *velocity in variants:
+        acfg = replace(base, reprojection_weight=float(reprojection), bone_weight=float(bone),
+                       velocity_weight=float(velocity[0]) if velocity else 0.0)
         model = model_from_onnx(SHIPPED_LIFTER)
         rf = model.receptive_field
         capture = PairSampler(train, rf + cfg.chunk - 1, cfg.augment, acfg.seed, cfg.input_norm, rf, cfg.feet,

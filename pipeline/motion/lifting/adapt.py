@@ -43,6 +43,7 @@ class AdaptConfig:
     lr_final: float = 1e-5
     reprojection_weight: float = 1.0   # 0 (with bone_weight 0): the supervised control
     bone_weight: float = 1.0
+    velocity_weight: float = 0.0       # the capture's velocity error (MPJVE) beside its MPJPE: less jitter
     seed: int = 1
     threads: int = 2
 
@@ -175,6 +176,9 @@ def adapt_lifter(model: torch.nn.Module, cfg: AdaptConfig, capture, video: Video
         pred = model(torch.from_numpy(inputs))
         loss = torch.linalg.norm(pred - target, dim=-1).mean()
         losses["capture_mpjpe_m"].append(loss.item())
+        if cfg.velocity_weight:
+            velocity = torch.linalg.norm(torch.diff(pred, dim=1) - torch.diff(target, dim=1), dim=-1).mean()
+            loss = loss + cfg.velocity_weight * velocity
         if semi:
             v_in, v_target, v_weight = video.batch(cfg.video_batch, step)
             v_pred = model(torch.from_numpy(v_in))
