@@ -44,7 +44,7 @@ from pipeline.motion.shipped import SHIPPED_LIFTER
 from stages.train_lifter import config_from_params
 
 
-def clip_figures(model, clips, fps: dict[str, float]) -> dict[str, dict]:
+def clip_figures(model, clips) -> dict[str, dict]:
     """Per clip: reprojection (body sizes), bone-length variation (CV of the median bone), jitter (m/s^2)."""
     from functools import partial
 
@@ -57,8 +57,7 @@ def clip_figures(model, clips, fps: dict[str, float]) -> dict[str, dict]:
     for clip in clips:
         pose = lift([clip.xy])[0][:, :17]
         bones = bone_lengths(pose)
-        rate = fps[clip.name.split("/")[0]]
-        acceleration = np.linalg.norm(np.diff(pose, 2, axis=0), axis=-1) * rate ** 2
+        acceleration = np.linalg.norm(np.diff(pose, 2, axis=0), axis=-1) * clip.fps ** 2
         out[clip.name] = {"reprojection": round(reprojection[clip.name], 4),
                           "bone_cv": round(float(np.median(bones.std(0) / bones.mean(0))), 4),
                           "jitter_m_s2": round(float(np.median(acceleration)), 2), "frames": len(clip.xy)}
@@ -117,14 +116,12 @@ def main() -> None:
     parser.add_argument("--out-models", type=Path, default=Path.home() / ".cache/dance3d/adapt")
     args = parser.parse_args()
 
-    from pipeline.annotate.clipfile import read_clean
     from pipeline.motion.lifting import train as training
 
     section = stage_params(load_params("params.yaml"), "train_lifter")
     cfg = config_from_params(with_profile({**section, "profile": "full"}, "train_lifter"))
     train, val = split(training.load_mocap(args.mocap, cfg), cfg.holdout)
     files = [f for folder in args.clean for f in item_files(folder)]
-    fps = {read_clean(f).segment.segment_id: read_clean(f).segment.fps for f in files}
     held_out = tuple(args.hold_out)
     clips = video_clips(files)
     adapt_on = [c for c in clips if not c.name.startswith(held_out)]
@@ -136,7 +133,7 @@ def main() -> None:
                "clips": {c.name: len(c.xy) for c in clips}, "models": {}}
     if args.out.exists():
         results["models"] = json.loads(args.out.read_text())["models"]
-    results["models"]["shipped"] = {"clips": clip_figures(start, clips, fps)}
+    results["models"]["shipped"] = {"clips": clip_figures(start, clips)}
     results["models"]["shipped"]["summary"] = summary(results["models"]["shipped"]["clips"], held_out)
     if args.project:
         results["models"]["shipped"]["pipeline"] = in_pipeline(args.project, SHIPPED_LIFTER, args.sync, args.out_models)
@@ -152,7 +149,7 @@ def main() -> None:
                               cfg.source_weights)
         video = VideoSampler(adapt_on, rf + cfg.chunk - 1, rf, acfg.seed)
         result = adapt_lifter(model, acfg, capture, video)
-        figures = clip_figures(result.model, clips, fps)
+        figures = clip_figures(result.model, clips)
         heldout = training.evaluate(result.model, val, cfg)["heldout"]
         tail = {k: round(float(np.mean(v[-100:])), 4) for k, v in result.losses.items() if v}
         results["models"][name] = {"config": acfg.__dict__, "train_seconds": round(result.seconds, 1),

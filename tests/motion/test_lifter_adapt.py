@@ -103,7 +103,7 @@ def test_the_bone_prior_asks_the_video_bodies_for_the_captures_bone_lengths() ->
 
 def test_video_windows_are_fixed_by_the_step_and_their_targets_are_the_frames_the_lifter_returns() -> None:
     xy, _ = _filmed_clip(_dancer(), seed=2)
-    clip = VideoClip("seg/0", xy, np.ones(xy.shape[:2]))
+    clip = VideoClip("seg/0", xy, np.ones(xy.shape[:2]), 25.0)
     sampler = VideoSampler([clip], length=27 + 15, receptive_field=27, seed=4)
     inputs, targets, weights = sampler.batch(8, step=11)
     again = sampler.batch(8, step=11)
@@ -121,7 +121,7 @@ def _tiny_lifter() -> TemporalModel:
 def test_adapting_makes_the_lift_explain_the_video_2d_better_than_the_capture_alone_does() -> None:
     capture = PairSampler([_dancer(seed=0)], 27 + 15, AugmentOptions(), 0, "centred", 27, feet=True)
     xy, _ = _filmed_clip(_dancer(seed=5), seed=7)
-    video = [VideoClip("seg/0", xy, np.ones(xy.shape[:2]))]
+    video = [VideoClip("seg/0", xy, np.ones(xy.shape[:2]), 25.0)]
     cfg = AdaptConfig(steps=40, batch=8, video_batch=8, lr=1e-3, lr_final=1e-3, threads=1)
     control = adapt_lifter(_tiny_lifter(), AdaptConfig(**{**cfg.__dict__, "reprojection_weight": 0.0,
                                                              "bone_weight": 0.0}), capture, None, progress=False)

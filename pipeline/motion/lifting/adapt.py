@@ -54,6 +54,7 @@ class VideoClip:
     name: str
     xy: np.ndarray       # T x 21 x 2 pixels (COCO-17, heels, toe tips), low-confidence joints filled
     weight: np.ndarray   # T x 21 the keypoint confidence, 0 where filled
+    fps: float           # the segment's frame rate
 
 
 def video_clips(clean_files: list[Path], min_score: float = 0.3, min_frames: int = 25) -> list[VideoClip]:
@@ -70,7 +71,7 @@ def video_clips(clean_files: list[Path], min_score: float = 0.3, min_frames: int
             full = with_feet(clip.keypoints, clip.feet)
             xy, _ = fill_low_confidence(full, min_score)
             weight = np.where(full[..., 2] >= min_score, full[..., 2], 0.0)
-            clips.append(VideoClip(f"{clean.segment.segment_id}/{clip.clip_id}", xy, weight))
+            clips.append(VideoClip(f"{clean.segment.segment_id}/{clip.clip_id}", xy, weight, clean.segment.fps))
     return clips
 
 
@@ -198,16 +199,11 @@ def adapt_lifter(model: torch.nn.Module, cfg: AdaptConfig, capture, video: Video
 def video_reprojection(model: torch.nn.Module, clips: list[VideoClip]) -> dict[str, float]:
     """Per clip, the median per-frame reprojection error (body sizes) of the whole clip lifted as the
     lift stage lifts it (edge-padded, no flip): how well the 3D explains the 2D it came from."""
-    rf = model.receptive_field
-    pad = rf // 2
-    out = {}
-    model.eval()
-    with torch.no_grad():
-        for clip in clips:
-            xy = normalise_centred(clip.xy, rf)
-            padded = np.concatenate([np.repeat(xy[:1], pad, 0), xy, np.repeat(xy[-1:], pad, 0)])
-            pose = model(torch.from_numpy(padded[None].astype(np.float32)))[0]
-            err = reprojection_error(pose, torch.from_numpy(xy.astype(np.float32)),
-                                     torch.from_numpy(clip.weight.astype(np.float32)))
-            out[clip.name] = float(err.median())
-    return out
+    from pipeline.motion.lifting.infer import Lifter
+
+    poses = Lifter.from_torch(model, "centred").lift([c.xy for c in clips], 1, 1)  # centred: no frame size
+    return {clip.name: float(reprojection_error(torch.from_numpy(pose),
+                                                torch.from_numpy(normalise_centred(clip.xy, model.receptive_field)
+                                                                 .astype(np.float32)),
+                                                torch.from_numpy(clip.weight.astype(np.float32))).median())
+            for clip, pose in zip(clips, poses)}
