@@ -39,7 +39,7 @@ def run(root: Path) -> None:
         out = root / POSE3D / clean_file.name
         job = Deferred("pipeline.motion.lifting.infer:LiftJob", (
             clean_file, out, float(params.get("min_score", 0.3)), bool(params.get("flip_tta", True)),
-            params, inputs, fp))
+            float(params.get("denoise_2d", 0.0)), params, inputs, fp))
         items.append(WorkItem(clean_file.stem, fp, (out,), job))
     run_item_stage("lift", items, "pipeline.motion.lifting.infer:lift_segment", out_dirs=[root / POSE3D],
                    params=params, setup="pipeline.motion.lifting.infer:load_models",

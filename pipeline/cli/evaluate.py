@@ -96,6 +96,7 @@ def add_eval(sub: argparse._SubParsersAction) -> None:
     lifter.add_argument("--all", action="store_true", help="score every sequence, also those the lifter trained on")
     lifter.add_argument("--no-flip", action="store_true", help="no flip averaging (the lift stage's flip_tta)")
     lifter.add_argument("--seconds", type=float, default=60.0, help="at most this much of each sequence (default 60)")
+    _denoise_option(lifter)
     _json_out(lifter)
     world = evaluate_sub.add_parser(
         "world", help="world-frame motion on motion capture, through the corpus's own path (W-MPJPE, RTE, contact F1)",
@@ -171,23 +172,24 @@ def run_eval(root: Path, args: argparse.Namespace) -> int:
             from pipeline.motion.lifting.evaluate import evaluate_onnx
             from pipeline.motion.lifting.evaluate import format_report as format_table
 
-            model, _ = _lift_models(root, args, contact=False)  # the project's, else the shipped lifter
+            model, _, denoise = _lift_models(root, args, contact=False)  # the project's, else the shipped lifter
             result = evaluate_onnx(model, args.mocap, heldout_only=not args.all, flip=not args.no_flip,
-                                   max_seconds=args.seconds)
+                                   max_seconds=args.seconds, denoise=denoise)
         elif args.what == "world":
             from pipeline.motion.world.evaluate import PoseInput, evaluate_folder
             from pipeline.motion.world.evaluate import format_report as format_table
 
-            model, contact = _lift_models(root, args)
+            model, contact, denoise = _lift_models(root, args)
             result = evaluate_folder(model, contact, args.mocap, heldout_only=not args.all, seconds=args.seconds,
-                                     pose_input=PoseInput(not args.clean_2d, args.frame_noise, args.pose_fps))
+                                     pose_input=PoseInput(not args.clean_2d, args.frame_noise, args.pose_fps),
+                                     denoise=denoise)
         elif args.what == "group":
             from pipeline.motion.world.group_eval import evaluate_group_folder
             from pipeline.motion.world.group_eval import format_report as format_table
 
-            model, contact = _lift_models(root, args)
+            model, contact, denoise = _lift_models(root, args)
             result = evaluate_group_folder(model, contact, args.mocap, heldout_only=not args.all, groups=args.groups,
-                                           seconds=args.seconds)
+                                           seconds=args.seconds, denoise=denoise)
         elif args.what == "sync":
             from pipeline.motion.world.group_eval import format_sync as format_table
             from pipeline.motion.world.group_eval import sync_pairs
@@ -259,6 +261,11 @@ def _json_out(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
 
 
+def _denoise_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--denoise-2d", type=float, default=None, metavar="LAMBDA", help="the 2D's HP lambda as at 30 "
+                        "fps before lifting (default: params.yaml lift.denoise_2d, as the lift stage; 0: none)")
+
+
 def _capture_eval_options(parser: argparse.ArgumentParser, seconds: float) -> None:
     """The options every evaluation on motion capture through the corpus's path takes."""
     parser.add_argument("--mocap", type=Path, required=True, help="the motion-capture folder")
@@ -268,12 +275,14 @@ def _capture_eval_options(parser: argparse.ArgumentParser, seconds: float) -> No
     parser.add_argument("--all", action="store_true", help="use every sequence, also those the models trained on")
     parser.add_argument("--seconds", type=float, default=seconds,
                         help=f"at most this much of each sequence (default {seconds:g})")
+    _denoise_option(parser)
     _json_out(parser)
 
 
-def _lift_models(root: Path, args: argparse.Namespace, contact: bool = True) -> tuple[Path, Path | None]:
+def _lift_models(root: Path, args: argparse.Namespace, contact: bool = True) -> tuple[Path, Path | None, float]:
     """The lifter and (with ``contact``) the contact model: the options', else params.yaml lift's,
-    else (a fresh clone, where train_lifter and train_contact have not run) the shipped ones, saying so."""
+    else (a fresh clone, where train_lifter and train_contact have not run) the shipped ones, saying so;
+    and the 2D's denoising: the option's, else params.yaml lift's."""
     from pipeline.core.params import project_or_default_params, stage_params
     from pipeline.motion.shipped import SHIPPED_CONTACT, SHIPPED_LIFTER, model_or_shipped
 
@@ -287,6 +296,4 @@ def _lift_models(root: Path, args: argparse.Namespace, contact: bool = True) -> 
         contact_model, notice = model_or_shipped(root / lift["contact_model"], SHIPPED_CONTACT, "contact model")
         if notice:
             print(f"dance3d: {notice}", file=sys.stderr)
-    return model, contact_model
-
-
+    return model, contact_model, float(lift.get("denoise_2d", 0.0) if args.denoise_2d is None else args.denoise_2d)

@@ -67,6 +67,12 @@ def _substitute(u: np.ndarray, y: np.ndarray) -> np.ndarray:  # pragma: no cover
     return x
 
 
+def hp_lambda_at(lamb: float, fps: float, reference_fps: float) -> float:
+    """The HP lambda at ``fps`` that passes the same frequencies (Hz) as ``lamb`` does at
+    ``reference_fps``: lambda scales with the fourth power of the sampling rate (Ravn and Uhlig, 2002)."""
+    return float(lamb) * (float(fps) / float(reference_fps)) ** 4
+
+
 def hp_trend(series: np.ndarray, lamb: float = 1.0) -> np.ndarray:
     """HP trend along axis 0 of ``series`` (T x ...), every other axis a separate series."""
     y = np.asarray(series, dtype=np.float64)

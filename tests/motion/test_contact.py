@@ -212,8 +212,9 @@ def test_eval_world_scores_the_corpus_path_against_the_path_without_learned_cont
     assert result["protocol"]["sequences"] == 1 and result["protocol"]["cameras"] == 10
     assert learned["contact_f1"] > 0.6 > baseline["contact_f1"]
     assert learned["foot_sliding_mm"] < baseline["foot_sliding_mm"] / 3
-    assert learned["wa_mpjpe100_mm"] < baseline["wa_mpjpe100_mm"] and learned["jitter"] < baseline["jitter"] / 3
+    assert learned["wa_mpjpe100_mm"] < baseline["wa_mpjpe100_mm"] and learned["jitter"] < baseline["jitter"] / 1.5
     assert learned["planted_height_mm"] < 20 < baseline["planted_height_mm"]
+    assert result["protocol"]["denoise_2d"] == 10.0  # the lift stage's default, as the corpus is made
     assert set(result["learned"]["by_pitch"]) == {"-20", "-10", "+0", "+10", "+20"}
 
 

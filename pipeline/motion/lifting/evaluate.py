@@ -148,11 +148,13 @@ def add_pose_noise(xy: np.ndarray, rng: np.random.Generator, level: float = OKS8
     return noisy
 
 
+PROTOCOL_FPS = 25.0  # the rate every sequence is filmed at
+
 # (clips of pixel keypoints, width, height) -> root-relative 3D clips, as Lifter.lift
 LiftFn = Callable[[list[np.ndarray], int, int], list[np.ndarray]]
 
 
-def evaluate_lifter(lift: LiftFn, sequences: list[MocapSequence], *, fps: float = 25.0, max_seconds: float = 60.0,
+def evaluate_lifter(lift: LiftFn, sequences: list[MocapSequence], *, fps: float = PROTOCOL_FPS, max_seconds: float = 60.0,
                     cameras: tuple[Camera, ...] = PROTOCOL_CAMERAS, seed: int = 0, feet: bool = False) -> dict:
     """The protocol above: {"clean": {...}, "noisy": {...}, "sources": {...}, "protocol": {...}};
     ``feet``: the lifter takes and returns the heels and toe tips after the 17 joints."""
@@ -202,13 +204,12 @@ def summarise(per: dict, sequences: list[MocapSequence], fps: float, max_seconds
 
 
 def evaluate_onnx(model: Path, mocap: Path, *, heldout_only: bool = True, flip: bool = True,
-                  max_seconds: float = 60.0, threads: int = 2) -> dict:
+                  max_seconds: float = 60.0, threads: int = 2, denoise: float = 0.0) -> dict:
     """``dance3d eval lifter``: an exported lifter on a motion-capture folder (``load_folder``).
     With ``heldout_only``, a folder of the known sources is cut to the train_lifter split's
-    held-out sequences (a folder of your own capture is used whole)."""
-    from functools import partial
-
-    from pipeline.motion.lifting.infer import load_lifter
+    held-out sequences (a folder of your own capture is used whole). ``denoise``: the 2D is
+    denoised first, as the lift stage does (``infer.denoise_2d``; 0, the protocol's own: the lifter alone)."""
+    from pipeline.motion.lifting.infer import denoise_2d, load_lifter
     from pipeline.motion.mocap.sources import load_folder
 
     sequences = load_folder(mocap)
@@ -223,9 +224,11 @@ def evaluate_onnx(model: Path, mocap: Path, *, heldout_only: bool = True, flip: 
         if lacking:
             raise InputError(mocap, f"{len(lacking)} sequences ({', '.join(lacking[:3])}) have no heels and toes, "
                                     f"which lifter {model} takes (add 'feet' to a joint-position .npz)")
-    result = evaluate_lifter(partial(lifter.lift, flip=flip), sequences, max_seconds=max_seconds,
-                             feet=lifter.feet)
-    result["protocol"].update(model=str(model), mocap=str(mocap), flip=flip,
+    def lift(clips: list[np.ndarray], width: int, height: int) -> list[np.ndarray]:
+        return lifter.lift([denoise_2d(c, PROTOCOL_FPS, denoise) for c in clips], width, height, flip=flip)
+
+    result = evaluate_lifter(lift, sequences, fps=PROTOCOL_FPS, max_seconds=max_seconds, feet=lifter.feet)
+    result["protocol"].update(model=str(model), mocap=str(mocap), flip=flip, denoise_2d=denoise,
                               split="held-out sequences of the train_lifter split" if held else "every sequence")
     return result
 

@@ -15,6 +15,13 @@ from pipeline.motion.mocap.skeleton import COCO21_FLIP, COCO_FLIP, FEET_ANKLES_C
 JOINTS_IN = {False: "coco17", True: "coco17+feet"}
 JOINTS_OUT = {False: "h36m17", True: "h36m17+feet"}
 
+# The 2D before lifting: the HP lambda at 30 fps (scaled by the fourth power of the rate at others).
+# The lifter passes the pose model's frame-to-frame noise into the 3D, where HP at lambda 1 hardly
+# touches it (docs/reports/world.md, 2026-12-05 (a fifth session)); chosen on the lifter split's
+# training sequences.
+DENOISE_2D = 10.0
+DENOISE_FPS = 30.0
+
 
 def fill_low_confidence(keypoints: np.ndarray, min_score: float) -> tuple[np.ndarray, np.ndarray]:
     """Replace joints below ``min_score`` by linear interpolation over time (held at the ends).
@@ -33,6 +40,16 @@ def fill_low_confidence(keypoints: np.ndarray, min_score: float) -> tuple[np.nda
             xy[low[:, j], j, c] = np.interp(frames[low[:, j]], frames[good], xy[good, j, c])
     filled = low & low.any(0, keepdims=True) & (~low).any(0, keepdims=True)
     return xy, filled
+
+
+def denoise_2d(xy: np.ndarray, fps: float, lamb: float = DENOISE_2D) -> np.ndarray:
+    """2D keypoint paths (T x J x 2, pixels) HP-filtered along time with ``lamb`` as at 30 fps
+    (0: unchanged): the pose model's frame-to-frame noise out, the dancer's motion kept."""
+    if lamb <= 0 or len(xy) < 3:
+        return xy
+    from pipeline.motion.smoothing import hp_lambda_at, hp_trend
+
+    return hp_trend(xy, hp_lambda_at(lamb, fps, DENOISE_FPS))
 
 
 class Lifter:
@@ -132,6 +149,7 @@ class LiftJob:
     out: Path
     min_score: float   # 2D joints below this are interpolated over time first
     flip: bool         # average with the mirrored input
+    denoise: float     # HP lambda at 30 fps on the 2D before lifting (0: none)
     params: dict
     inputs: dict
     fingerprint: str
@@ -151,17 +169,18 @@ def load_lifter(path: str, threads: int = 1) -> Lifter:
 
 
 def lift_clips(models: LiftModels, keypoints: list[np.ndarray], feet: list[np.ndarray | None], width: int,
-               height: int, fps: float, min_score: float, flip: bool) -> list[LiftedClip]:
+               height: int, fps: float, min_score: float, flip: bool,
+               denoise: float = DENOISE_2D) -> list[LiftedClip]:
     """2D clips (T x 17 x 3 pixels and scores; heels and toes T x 4 x 3 or None) -> 3D, the root's
     path and the contact probabilities: what the lift stage writes, and what ``dance3d eval world``
-    runs on filmed motion capture."""
+    runs on filmed motion capture. The 2D is filled where unsure, then denoised (``denoise_2d``)."""
     from pipeline.motion.world.trajectory import assumed_focal, place_root, sight_rays
 
     if not keypoints:
         return []
     lifter = models.lifter
     full = [with_feet(k, f if f is not None else np.zeros((len(k), 4, 3))) for k, f in zip(keypoints, feet)]
-    filled = [fill_low_confidence(k, min_score) for k in full]
+    filled = [(denoise_2d(xy, fps, denoise), mask) for xy, mask in (fill_low_confidence(k, min_score) for k in full)]
     inputs = [f[0] if lifter.feet else f[0][:, :17] for f in filled]
     lifted = lifter.lift(inputs, width, height, flip=flip)
     focal = assumed_focal(width, height)
@@ -193,7 +212,8 @@ def lift_segment(models: LiftModels, job: LiftJob) -> dict:
 
     clean = read_clean(job.clean)
     lifted = lift_clips(models, [c.keypoints for c in clean.clips], [c.feet for c in clean.clips],
-                        clean.segment.width, clean.segment.height, clean.segment.fps, job.min_score, job.flip)
+                        clean.segment.width, clean.segment.height, clean.segment.fps, job.min_score, job.flip,
+                        job.denoise)
     clips = [MotionClip(c.clip_id, c.track_id, c.frame.astype(np.int32), clean.time(c), lc.joints,
                         c.interpolated, lc.filled.sum(1).astype(np.int8), lc.root, lc.feet, lc.contact, lc.feet_rays,
                         *clip_hands(c))

@@ -8,8 +8,8 @@ Protocol:
   set-ups, a portrait phone at 1.2 m, 3 m away, and a landscape camera on a 2 m stand, 5 m away
   (the lifter protocol's; headings 0, 72, ... 288 degrees, one per camera), with noisy 2D (a pose
   model of expected OKS 0.80, 2 % of joints missing), heels and toes included;
-- the 2D then takes the corpus's path: the lift stage (lifter, per-frame root, contact model:
-  ``lifting.infer.lift_clips``), the smooth stage (HP filter, lambda 1), the resample stage (24 fps)
+- the 2D then takes the corpus's path: the lift stage (the 2D denoised, lifter, per-frame root, contact
+  model: ``lifting.infer.lift_clips``), the smooth stage (HP filter, lambda 1), the resample stage (24 fps)
   and the world grounding (``grounding.ground_clip``); the capture is resampled to the same frames;
 - the capture's planted heels and toe tips are ``contact.capture_contact``'s; its floor is their
   standing level (y = 0).
@@ -44,7 +44,7 @@ import numpy as np
 
 from pipeline.core.errors import InputError
 from pipeline.motion.lifting.evaluate import Camera, add_pose_noise, camera_pose, split, view
-from pipeline.motion.lifting.infer import LiftModels, lift_clips
+from pipeline.motion.lifting.infer import DENOISE_2D, LiftModels, lift_clips
 from pipeline.motion.mocap.sources import MocapSequence, first_seconds, load_folder, resample
 from pipeline.motion.motionfile import MotionClip
 from pipeline.motion.resample import interpolate_linear, resample_clip
@@ -203,7 +203,8 @@ def at_corpus_rate(lifted, lamb: float = 1.0, clip_id: str = "run", track_id: in
 
 
 def film_and_ground(models: LiftModels, seq: MocapSequence, camera: Camera, rng: np.random.Generator,
-                    lamb: float = 1.0, pose_input: PoseInput = PoseInput()) -> dict[str, dict]:
+                    lamb: float = 1.0, pose_input: PoseInput = PoseInput(),
+                    denoise: float = DENOISE_2D) -> dict[str, dict]:
     """One run: ``seq`` (at ``VIDEO_FPS``) filmed by ``camera``, its 2D made as ``pose_input`` says,
     through the corpus's path, scored with the contact model (``learned``) and without (``baseline``)."""
     body = np.concatenate([seq.h36m, seq.feet], 1)
@@ -212,7 +213,7 @@ def film_and_ground(models: LiftModels, seq: MocapSequence, camera: Camera, rng:
     in_frame = float(((feet >= 0) & (feet <= [camera.width, camera.height])).all(-1).mean())
     keypoints = pose_input.keypoints(xy, rng)
     (lifted,) = lift_clips(models, [keypoints[:, :17]], [keypoints[:, 17:]], camera.width, camera.height,
-                           VIDEO_FPS, min_score=0.3, flip=True)
+                           VIDEO_FPS, min_score=0.3, flip=True, denoise=denoise)
     clip = at_corpus_rate(lifted, lamb)
     truth = _truth(seq, camera, clip.time)
     out = {}
@@ -228,7 +229,8 @@ def film_and_ground(models: LiftModels, seq: MocapSequence, camera: Camera, rng:
 
 
 def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: float = 20.0,
-                   seed: int = 0, progress=None, pose_input: PoseInput = PoseInput()) -> dict:
+                   seed: int = 0, progress=None, pose_input: PoseInput = PoseInput(),
+                   denoise: float = DENOISE_2D) -> dict:
     """Medians per source and over all, for each variant (``learned``, ``baseline``), and by pitch."""
     rng = np.random.default_rng(seed)
     runs: list[dict] = []
@@ -237,7 +239,8 @@ def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: 
         if seq.frames < 2 * VIDEO_FPS:
             continue
         for camera in CAMERAS:
-            for variant, row in film_and_ground(models, seq, camera, rng, pose_input=pose_input).items():
+            for variant, row in film_and_ground(models, seq, camera, rng, pose_input=pose_input,
+                                                        denoise=denoise).items():
                 runs.append({"source": seq.source, "sequence": seq.name, "pitch": camera.pitch_deg,
                              "variant": variant, **row})
             if progress:
@@ -249,7 +252,7 @@ def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: 
 
     result: dict = {"protocol": {"sequences": len({r["sequence"] for r in runs}), "cameras": len(CAMERAS),
                                  "seconds_each": seconds, "video_fps": VIDEO_FPS, "corpus_fps": CORPUS_FPS,
-                                 **pose_input.describe()}}
+                                 **pose_input.describe(), "denoise_2d": denoise}}
     for variant in dict.fromkeys(r["variant"] for r in runs):
         rows = [r for r in runs if r["variant"] == variant]
         result[variant] = {"all": medians(rows),
@@ -266,7 +269,7 @@ def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: 
 
 def evaluate_folder(lifter: Path, contact: Path | None, mocap: Path, *, heldout_only: bool = True,
                     seconds: float = 20.0, threads: int = 2, progress=None,
-                    pose_input: PoseInput = PoseInput()) -> dict:
+                    pose_input: PoseInput = PoseInput(), denoise: float = DENOISE_2D) -> dict:
     """``dance3d eval world`` on a folder ``load_folder`` reads: a folder of the known sources is cut
     to the train_lifter split's held-out sequences; a folder of your own capture is used whole."""
     from pipeline.motion.lifting.infer import load_models
@@ -282,7 +285,7 @@ def evaluate_folder(lifter: Path, contact: Path | None, mocap: Path, *, heldout_
         if path is not None and not Path(path).is_file():
             raise InputError(path, "no such model")
     models = load_models(str(lifter), str(contact) if contact else "", threads)
-    result = evaluate_world(models, sequences, seconds, progress=progress, pose_input=pose_input)
+    result = evaluate_world(models, sequences, seconds, progress=progress, pose_input=pose_input, denoise=denoise)
     result["protocol"].update(lifter=str(lifter), contact_model=str(contact) if contact else "none",
                               mocap=str(mocap), split="held-out sequences of the train_lifter split" if held
                               else "every sequence")

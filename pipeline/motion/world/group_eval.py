@@ -48,7 +48,7 @@ import numpy as np
 
 from pipeline.motion.lifting.evaluate import add_pose_noise
 from pipeline.motion.lifting.geometry import look_at, project, to_camera
-from pipeline.motion.lifting.infer import LiftModels, lift_clips
+from pipeline.motion.lifting.infer import DENOISE_2D, LiftModels, lift_clips
 from pipeline.motion.mocap.sources import MocapSequence, first_seconds, resample
 from pipeline.motion.resample import interpolate_linear
 from pipeline.motion.world.contact import standing_level
@@ -175,7 +175,7 @@ def group_scores(estimate: list[np.ndarray], truth: list[np.ndarray]) -> dict:
 
 
 def run_group(models: LiftModels, takes: list[MocapSequence], camera: GroupCamera, rng: np.random.Generator,
-              lamb: float = 1.0, together: bool = False) -> dict[str, dict]:
+              lamb: float = 1.0, together: bool = False, denoise: float = DENOISE_2D) -> dict[str, dict]:
     """One group filmed by one camera, through the corpus's path: the scene and the baseline.
     ``together``: the takes were captured together and keep their real places (no formation)."""
     frames = min(t.frames for t in takes)
@@ -187,7 +187,7 @@ def run_group(models: LiftModels, takes: list[MocapSequence], camera: GroupCamer
         dancers = [place(t, spot) for t, spot in zip(cut, spots)]
     seen, roots, rotation, _ = film(dancers, camera, spots, rng)
     lifted = lift_clips(models, [k[:, :17] for k in seen], [k[:, 17:] for k in seen], WIDTH, HEIGHT, VIDEO_FPS,
-                        min_score=0.3, flip=True)
+                        min_score=0.3, flip=True, denoise=denoise)
     clips = [at_corpus_rate(lc, lamb, f"group_{k}", k) for k, lc in enumerate(lifted)]
     truth = [interpolate_linear(c.time, np.arange(len(root)) / VIDEO_FPS, root) for c, root in zip(clips, roots)]
     true_up = rotation @ np.array([0.0, 1.0, 0.0])
@@ -211,7 +211,7 @@ def random_camera(rng: np.random.Generator) -> GroupCamera:
 
 def evaluate_groups(models: LiftModels, sequences: list[MocapSequence], *, groups: int = 8, seconds: float = 15.0,
                     sizes: tuple[int, ...] = SIZES, seed: int = 0, progress=None,
-                    real: list[list[MocapSequence]] = ()) -> dict:
+                    real: list[list[MocapSequence]] = (), denoise: float = DENOISE_2D) -> dict:
     """``groups`` groups of each size in ``sizes``; medians per size and over all, per method.
     ``real``: groups captured together (``captured_together``), each filmed by ``groups`` cameras
     and summarised apart ("real")."""
@@ -225,7 +225,7 @@ def evaluate_groups(models: LiftModels, sequences: list[MocapSequence], *, group
     for size in sizes:
         for _ in range(groups):
             chosen = [takes[i] for i in rng.choice(len(takes), size, replace=False)]
-            for method, row in run_group(models, chosen, random_camera(rng), rng).items():
+            for method, row in run_group(models, chosen, random_camera(rng), rng, denoise=denoise).items():
                 runs.append({"method": method, "sequences": [t.name for t in chosen], **row})
             if progress:
                 progress()
@@ -233,7 +233,8 @@ def evaluate_groups(models: LiftModels, sequences: list[MocapSequence], *, group
     for group in real:
         cut = [first_seconds(resample(s, VIDEO_FPS), seconds) for s in group]
         for _ in range(groups):
-            for method, row in run_group(models, cut, random_camera(rng), rng, together=True).items():
+            for method, row in run_group(models, cut, random_camera(rng), rng, together=True,
+                                           denoise=denoise).items():
                 real_runs.append({"method": method, "sequences": [t.name for t in group], **row})
             if progress:
                 progress()
@@ -248,7 +249,8 @@ def evaluate_groups(models: LiftModels, sequences: list[MocapSequence], *, group
                 "hidden_share": round(float(np.mean([r["hidden_share"] for r in rows])), 3)}
 
     result: dict = {"protocol": {"groups_per_size": groups, "sizes": list(sizes), "seconds_each": seconds,
-                                 "takes": len(takes), "video_fps": VIDEO_FPS, "corpus_fps": CORPUS_FPS}}
+                                 "takes": len(takes), "video_fps": VIDEO_FPS, "corpus_fps": CORPUS_FPS,
+                                 "denoise_2d": denoise}}
     for method in ("scene", "baseline"):
         rows = [r for r in runs if r["method"] == method]
         result[method] = {"all": summary(rows),
@@ -262,7 +264,8 @@ def evaluate_groups(models: LiftModels, sequences: list[MocapSequence], *, group
 
 
 def evaluate_group_folder(lifter, contact, mocap, *, heldout_only: bool = True, groups: int = 8,
-                          seconds: float = 15.0, threads: int = 2, progress=None) -> dict:
+                          seconds: float = 15.0, threads: int = 2, progress=None,
+                          denoise: float = DENOISE_2D) -> dict:
     """``dance3d eval group`` on a folder ``load_folder`` reads (held-out sequences of the known
     sources; a folder of your own capture is used whole)."""
     from pipeline.core.errors import InputError
@@ -280,7 +283,8 @@ def evaluate_group_folder(lifter, contact, mocap, *, heldout_only: bool = True, 
             raise InputError(path, "no such model")
     models = load_models(str(lifter), str(contact) if contact else "", threads)
     try:
-        result = evaluate_groups(models, sequences, groups=groups, seconds=seconds, progress=progress, real=real)
+        result = evaluate_groups(models, sequences, groups=groups, seconds=seconds, progress=progress, real=real,
+                                 denoise=denoise)
     except ValueError as exc:
         raise InputError(mocap, str(exc)) from exc
     result["protocol"].update(lifter=str(lifter), contact_model=str(contact) if contact else "none",
