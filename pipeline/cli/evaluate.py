@@ -96,7 +96,8 @@ def add_eval(sub: argparse._SubParsersAction) -> None:
     lifter.add_argument("--all", action="store_true", help="score every sequence, also those the lifter trained on")
     lifter.add_argument("--no-flip", action="store_true", help="no flip averaging (the lift stage's flip_tta)")
     lifter.add_argument("--seconds", type=float, default=60.0, help="at most this much of each sequence (default 60)")
-    _denoise_option(lifter)
+    lifter.add_argument("--denoise-2d", type=float, default=0.0, metavar="LAMBDA", help="denoise the 2D first as the "
+                        "lift stage does with this lambda (default 0: the lifter alone; the lift stage's: 10)")
     _json_out(lifter)
     world = evaluate_sub.add_parser(
         "world", help="world-frame motion on motion capture, through the corpus's own path (W-MPJPE, RTE, contact F1)",
@@ -261,11 +262,6 @@ def _json_out(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=None, help="also write the result as JSON here")
 
 
-def _denoise_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--denoise-2d", type=float, default=None, metavar="LAMBDA", help="the 2D's HP lambda as at 30 "
-                        "fps before lifting (default: params.yaml lift.denoise_2d, as the lift stage; 0: none)")
-
-
 def _capture_eval_options(parser: argparse.ArgumentParser, seconds: float) -> None:
     """The options every evaluation on motion capture through the corpus's path takes."""
     parser.add_argument("--mocap", type=Path, required=True, help="the motion-capture folder")
@@ -275,7 +271,8 @@ def _capture_eval_options(parser: argparse.ArgumentParser, seconds: float) -> No
     parser.add_argument("--all", action="store_true", help="use every sequence, also those the models trained on")
     parser.add_argument("--seconds", type=float, default=seconds,
                         help=f"at most this much of each sequence (default {seconds:g})")
-    _denoise_option(parser)
+    parser.add_argument("--denoise-2d", type=float, default=None, metavar="LAMBDA", help="the 2D's HP lambda as at 30 "
+                        "fps before lifting (default: params.yaml lift.denoise_2d, as the lift stage; 0: none)")
     _json_out(parser)
 
 
