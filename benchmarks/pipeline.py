@@ -301,7 +301,8 @@ def table(name: str, summary: dict) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--set", choices=("demo", "long", "mixed", "groups"), default="demo", help="which videos (see above)")
+    parser.add_argument("--set", choices=("demo", "long", "mixed", "groups"), default="demo",
+                        help="which videos (see above)")
     parser.add_argument("--code", type=Path, action="append",
                         help="a code tree to run (repeatable; default: this checkout)")
     parser.add_argument("--runs", type=int, default=1, help="runs per code tree (medians are reported)")

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from statsmodels.tsa.filters.hp_filter import hpfilter
 
-from pipeline.motion.resample import grid_frames, resample_cubic
 from pipeline.motion.lifting.infer import denoise_2d
+from pipeline.motion.resample import grid_frames, resample_cubic
 from pipeline.motion.smoothing import hp_lambda_at, hp_trend
 
 

@@ -154,8 +154,9 @@ PROTOCOL_FPS = 25.0  # the rate every sequence is filmed at
 LiftFn = Callable[[list[np.ndarray], int, int], list[np.ndarray]]
 
 
-def evaluate_lifter(lift: LiftFn, sequences: list[MocapSequence], *, fps: float = PROTOCOL_FPS, max_seconds: float = 60.0,
-                    cameras: tuple[Camera, ...] = PROTOCOL_CAMERAS, seed: int = 0, feet: bool = False) -> dict:
+def evaluate_lifter(lift: LiftFn, sequences: list[MocapSequence], *, fps: float = PROTOCOL_FPS,
+                    max_seconds: float = 60.0, cameras: tuple[Camera, ...] = PROTOCOL_CAMERAS, seed: int = 0,
+                    feet: bool = False) -> dict:
     """The protocol above: {"clean": {...}, "noisy": {...}, "sources": {...}, "protocol": {...}};
     ``feet``: the lifter takes and returns the heels and toe tips after the 17 joints."""
     rng = np.random.default_rng(seed)
