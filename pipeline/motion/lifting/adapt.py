@@ -25,12 +25,11 @@ from tqdm import tqdm
 
 from pipeline.motion.lifting.geometry import normalise_centred
 from pipeline.motion.lifting.infer import fill_low_confidence, with_feet
-from pipeline.motion.mocap.skeleton import COCO21_FLIP, COCO_H36M_SHARED, FOOT_BONES, H36M_BONES
+from pipeline.motion.mocap.skeleton import COCO21_FLIP, COCO_H36M_SHARED, FOOT_BONES, H36M_BONES, HIP_WIDENING
 
 # The 2D points (COCO-17 + feet) whose 3D counterparts the lifter returns (H36M-17 + feet).
 SHARED_COCO = [c for c, _ in COCO_H36M_SHARED] + [17, 18, 19, 20]
 SHARED_H36M = [h for _, h in COCO_H36M_SHARED] + [17, 18, 19, 20]
-HIP_WIDENING = 1.1  # skeleton.coco_from_h36m: COCO's hips sit wider than the joint centres
 BONES = H36M_BONES + FOOT_BONES
 
 

@@ -130,7 +130,10 @@ def feet_array(heels: tuple[np.ndarray, np.ndarray], tips: tuple[np.ndarray, np.
     return np.stack([heels[0], heels[1], tips[0], tips[1]], axis=1)
 
 
-def coco_from_h36m(h36m: np.ndarray, hip_widening: float = 1.1) -> np.ndarray:
+HIP_WIDENING = 1.1  # COCO's hip keypoints sit wider than the hip joint centres
+
+
+def coco_from_h36m(h36m: np.ndarray, hip_widening: float = HIP_WIDENING) -> np.ndarray:
     """COCO-17 keypoints (T x 17 x 3) from H36M-17 joints: body joints shared, hips a little
     wider (COCO hips sit wider than joint centres), face placed from the head joint."""
     up, forward, left = head_frame(h36m)
