@@ -102,10 +102,10 @@ def _export_world_bvh(args: argparse.Namespace) -> int:
 
     if args.all == (args.clip_id is not None):
         return complain("dance3d export bvh: give MOTION CLIP_ID OUT.bvh, or MOTION --all OUT_FOLDER")
-    if args.clip_id is not None and clip_of(args.motion, args.clip_id) is None:
+    clips = motion_clips(args.motion)
+    if args.clip_id is not None and clip_of(args.motion, args.clip_id, clips) is None:
         return 2
     fps = float(read_meta(args.motion).get("fps", 24.0))
-    clips = motion_clips(args.motion)
     # The corpus's grounding: in the segment's scene, one skeleton, the contact-anchored root, feet on the floor.
     scene = ground_scene(clips, fps)
     if not args.all:

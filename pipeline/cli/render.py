@@ -75,9 +75,10 @@ def motion_clips(motion: Path) -> list:
     return read_clips(motion)
 
 
-def clip_of(motion: Path, clip_id: str):
-    """One clip of a motion file, or None after saying which clips there are."""
-    clips = {c.clip_id: c for c in motion_clips(motion)}
+def clip_of(motion: Path, clip_id: str, clips: list | None = None):
+    """One clip of a motion file (of ``clips``, its clips when already read), or None after saying
+    which clips there are."""
+    clips = {c.clip_id: c for c in (motion_clips(motion) if clips is None else clips)}
     if clip_id not in clips:
         print(f"dance3d: {motion}: no clip {clip_id!r}; clips: {', '.join(clips) or 'none'}", file=sys.stderr)
     return clips.get(clip_id)
