@@ -5,8 +5,10 @@ image's orientation (x right, y down, z away from the camera: the camera frame's
 lifted joints are), so a hand's shape needs no lifting of its own. Here it becomes wrist-relative
 (``hand_shapes``), rides through the motion files beside the joints (HP-filtered, resampled to
 24 fps), and the ground stage turns it into the world with the clip's camera rotation, fits one
-hand skeleton per clip (each finger bone at its median length over the frames the model is sure
-of: ``fit_hand_skeleton``) and hangs it on the world wrist (``world_hands``).
+hand skeleton per dancer (each finger bone at its median length over the frames the model is sure
+of either hand: ``bone_lengths``, ``fit_hand_skeleton``) and hangs it on each world wrist
+(``world_hands``). The model guesses each hand's metric size on its own; a dancer's two hands are
+one size.
 
 A frame where the model is unsure of a hand (presence under ``MIN_PRESENCE``) takes the hand's
 shape drawn between the nearest sure frames (held before the first and after the last), so the
@@ -42,17 +44,29 @@ def hand_shapes(hands_world: np.ndarray, presence: np.ndarray,
     return shapes.astype(np.float32), presence
 
 
-def fit_hand_skeleton(shapes: np.ndarray, presence: np.ndarray, min_presence: float = MIN_PRESENCE) -> np.ndarray:
-    """One hand's wrist-relative points (T x 21 x 3) with every bone at its median length over the
-    frames where the hand is sure (``presence`` T), each bone keeping its direction."""
+def bone_lengths(shapes: np.ndarray, presence: np.ndarray, min_presence: float = MIN_PRESENCE) -> np.ndarray | None:
+    """Each hand bone's median length (20) over the frames and hands (``shapes`` T x H x 21 x 3,
+    ``presence`` T x H) where a hand is sure; None where none is."""
     shapes = np.asarray(shapes, np.float64)
     sure = np.asarray(presence) >= min_presence
     if not sure.any():
+        return None
+    lengths = np.linalg.norm(shapes[:, :, 1:] - shapes[:, :, list(HAND_PARENTS[1:])], axis=-1)
+    return np.median(lengths[sure], axis=0)
+
+
+def fit_hand_skeleton(shapes: np.ndarray, presence: np.ndarray, min_presence: float = MIN_PRESENCE,
+                      lengths: np.ndarray | None = None) -> np.ndarray:
+    """One hand's wrist-relative points (T x 21 x 3) with every bone at ``lengths`` (default: its
+    median length over the frames where the hand is sure, ``presence`` T), each bone keeping its direction."""
+    shapes = np.asarray(shapes, np.float64)
+    fitted_lengths = bone_lengths(shapes[:, None], np.asarray(presence)[:, None], min_presence) if lengths is None \
+        else lengths
+    if fitted_lengths is None:
         return shapes.copy()
     parents = np.array(HAND_PARENTS[1:])
     bones = shapes[:, 1:] - shapes[:, parents]
     lengths = np.linalg.norm(bones, axis=-1)
-    fitted_lengths = np.median(lengths[sure], axis=0)
     directions = bones / np.maximum(lengths, 1e-9)[..., None]
     out = np.zeros_like(shapes)
     for child, parent in enumerate(HAND_PARENTS[1:], start=1):  # parents come before their children
@@ -63,11 +77,13 @@ def fit_hand_skeleton(shapes: np.ndarray, presence: np.ndarray, min_presence: fl
 def world_hands(shapes: np.ndarray, presence: np.ndarray, rotation: np.ndarray, wrists: np.ndarray,
                 min_presence: float = MIN_PRESENCE) -> np.ndarray:
     """World hands (T x 2 x 21 x 3): wrist-relative camera-frame ``shapes`` (T x 2 x 21 x 3) with one
-    skeleton per hand, turned by the camera's ``rotation`` (camera -> world, 3 x 3) and hung on the
-    world ``wrists`` (T x 2 x 3, left then right); NaN for a hand never sure in the clip."""
+    skeleton for both hands (``bone_lengths`` of the sure frames of either), turned by the camera's
+    ``rotation`` (camera -> world, 3 x 3) and hung on the world ``wrists`` (T x 2 x 3, left then
+    right); NaN for a hand never sure in the clip."""
     out = np.full(np.shape(shapes), np.nan)
+    lengths = bone_lengths(shapes, presence, min_presence)
     for side in range(2):
         if (np.asarray(presence)[:, side] >= min_presence).any():
-            fitted = fit_hand_skeleton(shapes[:, side], presence[:, side], min_presence)
+            fitted = fit_hand_skeleton(shapes[:, side], presence[:, side], min_presence, lengths)
             out[:, side] = np.asarray(wrists, np.float64)[:, side, None] + fitted @ np.asarray(rotation).T
     return out.astype(np.float32)

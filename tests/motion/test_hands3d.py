@@ -51,6 +51,28 @@ def test_one_hand_skeleton_per_clip_keeps_each_bones_direction_at_its_median_len
     assert cosine.min() > 0.999999
 
 
+def test_a_dancers_two_hands_share_one_skeleton_the_surer_hand_weighing_more() -> None:
+    # The hand model guesses each hand's metric size on its own: here the right hand (sure on a third
+    # of the frames) comes out 30 % larger than the left. One dancer has one hand size.
+    t = 30
+    left = _hand(t) - _hand(t)[:, :1]
+    right = 1.3 * (_hand(t, 1) - _hand(t, 1)[:, :1])
+    shapes = np.stack([left, right], 1)
+    presence = np.column_stack([np.full(t, 0.9), np.where(np.arange(t) < 10, 0.9, 0.2)])
+    world = world_hands(shapes, presence, np.eye(3), np.zeros((t, 2, 3)))
+    left_lengths, right_lengths = _bone_lengths(world[:, 0]), _bone_lengths(world[:, 1])
+    assert np.allclose(left_lengths, right_lengths, atol=1e-6)  # one length per bone for both hands
+    pooled = np.concatenate([_bone_lengths(left), _bone_lengths(right)[:10]])
+    assert np.allclose(left_lengths[0], np.median(pooled, 0), atol=1e-6)  # the sure frames of both, pooled
+    nearer_left = np.abs(left_lengths[0] - np.median(_bone_lengths(left), 0)) < np.abs(
+        left_lengths[0] - np.median(_bone_lengths(right), 0))
+    assert nearer_left.all()  # ... so nearer the surer left hand
+    bones = world[:, 1, 1:] - world[:, 1, list(HAND_PARENTS[1:])]
+    raw = right[:, 1:] - right[:, list(HAND_PARENTS[1:])]
+    cosine = (bones * raw).sum(-1) / np.linalg.norm(bones, axis=-1) / np.linalg.norm(raw, axis=-1)
+    assert cosine.min() > 0.99999  # each hand keeps its own pose
+
+
 def test_world_hands_hang_on_the_world_wrists_turned_by_the_camera_and_are_nan_where_never_seen() -> None:
     t = 6
     shapes = np.stack([_hand(t), _hand(t, 1)], 1)
@@ -111,8 +133,8 @@ def test_the_stages_carry_the_dancers_hands_from_2d_into_the_world_on_her_wrists
     sure = world.hand_presence >= 0.5
     assert sure[:, 0].mean() > 0.2 and sure[:, 1].mean() > 0.2
     assert np.allclose(world.hands[:, :, 0], world.joints[:, list(H36M_WRISTS)], atol=1e-5)  # on her wrists
-    lengths = _bone_lengths(world.hands)  # T x 2 x 20: one hand skeleton per clip
-    assert np.ptp(lengths, axis=0).max() < 1e-5
+    lengths = _bone_lengths(world.hands)  # T x 2 x 20: one hand skeleton per dancer
+    assert np.ptp(lengths, axis=0).max() < 1e-5 and np.abs(lengths[0, 0] - lengths[0, 1]).max() < 1e-5
     assert 0.06 < np.linalg.norm(world.hands[0, :, 12] - world.hands[0, :, 0], axis=-1).min() < 0.25  # a hand's size
     # SMPL-H: her fingers' rotations put each finger back on its knuckle exactly, by forward
     # kinematics on the clip's own rest hands; the knuckles themselves sit on SMPL-H's rigid palm,
