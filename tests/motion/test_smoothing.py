@@ -67,6 +67,9 @@ def test_denoising_the_2d_takes_frame_noise_out_and_keeps_the_dance() -> None:
     assert error_after < 0.6 * error_before
     assert np.abs(denoise_2d(path, 30.0, 10.0) - path)[10:-10].max() < 6.0  # the swing itself is kept
     assert denoise_2d(noisy, 30.0, 0.0) is noisy  # 0: the 2D as the pose model gave it
+    holed = noisy.copy()
+    holed[5, 0, 0] = np.nan
+    assert np.isfinite(denoise_2d(holed, 30.0, 10.0)[6:]).all()  # a hole stays where it is
 
 
 @pytest.mark.parametrize("fps", [24000 / 1001, 25.0, 30000 / 1001, 30.0, 50.0, 60000 / 1001, 60.0])

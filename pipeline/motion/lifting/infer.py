@@ -45,7 +45,7 @@ def fill_low_confidence(keypoints: np.ndarray, min_score: float) -> tuple[np.nda
 def denoise_2d(xy: np.ndarray, fps: float, lamb: float = DENOISE_2D) -> np.ndarray:
     """2D keypoint paths (T x J x 2, pixels) HP-filtered along time with ``lamb`` as at 30 fps
     (0: unchanged): the pose model's frame-to-frame noise out, the dancer's motion kept."""
-    if lamb <= 0 or len(xy) < 3:
+    if lamb <= 0 or len(xy) < 3 or not np.isfinite(xy).all():  # a NaN would spread along the whole series
         return xy
     from pipeline.motion.smoothing import hp_lambda_at, hp_trend
 
