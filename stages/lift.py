@@ -16,6 +16,7 @@ from pipeline.motion.motionfile import SCHEMA_VERSION
 
 CODE = code_fingerprint("pipeline.motion.lifting.infer", "pipeline.motion.world.contact_model",
                         "pipeline.motion.world.trajectory",  # the root path and the sight rays
+                        "pipeline.motion.smoothing",  # the 2D's denoising
                         "pipeline.motion.hands")
 
 
