@@ -60,17 +60,15 @@ def fit_hand_skeleton(shapes: np.ndarray, presence: np.ndarray, min_presence: fl
     """One hand's wrist-relative points (T x 21 x 3) with every bone at ``lengths`` (default: its
     median length over the frames where the hand is sure, ``presence`` T), each bone keeping its direction."""
     shapes = np.asarray(shapes, np.float64)
-    fitted_lengths = bone_lengths(shapes[:, None], np.asarray(presence)[:, None], min_presence) if lengths is None \
-        else lengths
-    if fitted_lengths is None:
+    if lengths is None:
+        lengths = bone_lengths(shapes[:, None], np.asarray(presence)[:, None], min_presence)
+    if lengths is None:
         return shapes.copy()
-    parents = np.array(HAND_PARENTS[1:])
-    bones = shapes[:, 1:] - shapes[:, parents]
-    lengths = np.linalg.norm(bones, axis=-1)
-    directions = bones / np.maximum(lengths, 1e-9)[..., None]
+    bones = shapes[:, 1:] - shapes[:, list(HAND_PARENTS[1:])]
+    directions = bones / np.maximum(np.linalg.norm(bones, axis=-1), 1e-9)[..., None]
     out = np.zeros_like(shapes)
     for child, parent in enumerate(HAND_PARENTS[1:], start=1):  # parents come before their children
-        out[:, child] = out[:, parent] + directions[:, child - 1] * fitted_lengths[child - 1]
+        out[:, child] = out[:, parent] + directions[:, child - 1] * lengths[child - 1]
     return out
 
 
