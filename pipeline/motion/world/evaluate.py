@@ -230,15 +230,16 @@ def film_and_ground(models: LiftModels, seq: MocapSequence, camera: Camera, rng:
 
 def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: float = 20.0,
                    seed: int = 0, progress=None, pose_input: PoseInput = PoseInput(),
-                   denoise: float = DENOISE_2D) -> dict:
-    """Medians per source and over all, for each variant (``learned``, ``baseline``), and by pitch."""
+                   denoise: float = DENOISE_2D, cameras: tuple[Camera, ...] = CAMERAS) -> dict:
+    """Medians per source and over all, for each variant (``learned``, ``baseline``), and by pitch
+    (of the pitches ``cameras`` has: the protocol's ten by default)."""
     rng = np.random.default_rng(seed)
     runs: list[dict] = []
     for seq in sequences:
         seq = first_seconds(resample(seq, VIDEO_FPS), seconds)
         if seq.frames < 2 * VIDEO_FPS:
             continue
-        for camera in CAMERAS:
+        for camera in cameras:
             for variant, row in film_and_ground(models, seq, camera, rng, pose_input=pose_input,
                                                         denoise=denoise).items():
                 runs.append({"source": seq.source, "sequence": seq.name, "pitch": camera.pitch_deg,
@@ -250,7 +251,7 @@ def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: 
         keys = [k for k in rows[0] if k not in ("source", "sequence", "pitch", "variant")]
         return {k: round(float(np.nanmedian([r[k] for r in rows])), 4) for k in keys}
 
-    result: dict = {"protocol": {"sequences": len({r["sequence"] for r in runs}), "cameras": len(CAMERAS),
+    result: dict = {"protocol": {"sequences": len({r["sequence"] for r in runs}), "cameras": len(cameras),
                                  "seconds_each": seconds, "video_fps": VIDEO_FPS, "corpus_fps": CORPUS_FPS,
                                  **pose_input.describe(), "denoise_2d": denoise}}
     for variant in dict.fromkeys(r["variant"] for r in runs):
@@ -258,7 +259,8 @@ def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: 
         result[variant] = {"all": medians(rows),
                            **{s: medians([r for r in rows if r["source"] == s])
                               for s in dict.fromkeys(r["source"] for r in rows)},
-                           "by_pitch": {f"{p:+g}": medians([r for r in rows if r["pitch"] == p]) for p in PITCHES}}
+                           "by_pitch": {f"{p:+g}": medians([r for r in rows if r["pitch"] == p]) for p in PITCHES
+                                        if any(c.pitch_deg == p for c in cameras)}}
         # Looking up from a phone's or a stand's height, the feet leave the frame (at -20 degrees on most
         # frames): a real pose model would not see them. The runs that keep the feet in view:
         seen = [r for r in rows if r["feet_in_frame"] >= FEET_SEEN]
