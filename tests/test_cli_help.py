@@ -43,6 +43,9 @@ def test_the_golden_file_covers_every_command() -> None:
     assert GOLDEN.read_text().count("==== dance3d") == len(commands(build_parser())) + 1 > 25
 
 
+def test_no_help_shows_a_doubled_percent_sign() -> None:
+    """argparse %-formats an option's help but prints a description as written: '%%' belongs only in the former."""
+    assert [line for line in every_help().splitlines() if "%%" in line] == []
 
 
 def test_each_module_of_the_command_line_is_small_enough_to_read_whole() -> None:

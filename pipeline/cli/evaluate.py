@@ -85,7 +85,7 @@ def add_eval(sub: argparse._SubParsersAction) -> None:
         "lifter", help="a 2D->3D lifter on motion capture seen by fixed virtual cameras (MPJPE, P-MPJPE)",
         description="Project every sequence of a motion-capture folder through ten fixed cameras (five headings; a "
                     "portrait phone at 1.2 m, 3 m away, and a landscape camera on a 2 m stand, 5 m away; 26 mm-"
-                    "equivalent lens), lift the clean and the noisy 2D (pose-model noise of expected OKS 0.80, 2%% "
+                    "equivalent lens), lift the clean and the noisy 2D (pose-model noise of expected OKS 0.80, 2% "
                     "of joints missing) as the lift stage does, and report MPJPE and P-MPJPE (mm) per source next "
                     "to the mean-pose baseline. Protocol: pipeline/motion/lifting/evaluate.py.",
         epilog="motion capture: a folder of the known sources (as $DANCE3D_MOCAP; only the train_lifter split's "
@@ -105,7 +105,7 @@ def add_eval(sub: argparse._SubParsersAction) -> None:
                     "a portrait phone at 1.2 m, 3 m away, and a landscape camera on a 2 m stand, 5 m away) with "
                     "noisy 2D (expected OKS 0.80), run it through the corpus's path (lift with the contact model, "
                     "HP smoothing, 24 fps, world grounding) and report per source: W-MPJPE100 and WA-MPJPE100 (mm), "
-                    "RTE (%% of path length), the root path after one scale and offset (mm), jitter, foot sliding "
+                    "RTE (% of path length), the root path after one scale and offset (mm), jitter, foot sliding "
                     "(mm per frame at 30 fps), contact F1 of the heels and toe tips, up error, planted-foot height "
                     "and the limb-length CV before the one-skeleton fit; beside each, the same path without the "
                     "contact model. Protocol: pipeline/motion/world/evaluate.py.",
