@@ -3,8 +3,8 @@
 The HP trend tau of a series y minimises ||y - tau||^2 + lambda ||D tau||^2 with D the
 second-difference operator, i.e. (I + lambda D'D) tau = y. The matrix is symmetric,
 positive definite and pentadiagonal: its banded Cholesky factor (scipy, cached per length
-and lambda) is computed once, and one compiled forward/back substitution (numba) solves
-every joint coordinate of a clip together, instead of one sparse solve per series
+and lambda) is computed once, and LAPACK's banded solve takes every joint coordinate of a clip
+as one right-hand side each, instead of one sparse solve per series
 (``statsmodels.tsa.filters.hp_filter.hpfilter``, the reference in the tests).
 """
 
@@ -14,13 +14,12 @@ from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
 
-import numba
 import numpy as np
-from scipy.linalg import cholesky_banded
+from scipy.linalg import cho_solve_banded, cholesky_banded
 
 
 def hp_banded(n: int, lamb: float) -> np.ndarray:
-    """Upper banded form (3 x n) of I + lambda D'D for ``solveh_banded``."""
+    """Upper banded form (3 x n) of I + lambda D'D (``scipy.linalg.cholesky_banded``'s layout)."""
     main = np.full(n, 1.0 + 6.0 * lamb)
     main[[0, -1]] = 1.0 + lamb
     main[[1, -2]] = 1.0 + 5.0 * lamb
@@ -36,35 +35,10 @@ def hp_banded(n: int, lamb: float) -> np.ndarray:
 
 @lru_cache(maxsize=64)
 def _factor(n: int, lamb: float) -> np.ndarray:
-    """Upper banded Cholesky factor U (A = U'U): row 2 the diagonal, rows 1 and 0 the super-diagonals."""
+    """Upper banded Cholesky factor U (A = U'U), as ``cho_solve_banded`` takes it."""
     factor = cholesky_banded(hp_banded(n, lamb), lower=False, check_finite=False)
     factor.setflags(write=False)
     return factor
-
-
-@numba.njit(cache=True)
-def _substitute(u: np.ndarray, y: np.ndarray) -> np.ndarray:  # pragma: no cover (compiled)
-    """Solve U'U x = y for every column of y (n x m), U upper banded with two super-diagonals."""
-    n, m = y.shape
-    z = np.empty_like(y)
-    for i in range(n):  # U' z = y
-        for j in range(m):
-            acc = y[i, j]
-            if i >= 1:
-                acc -= u[1, i] * z[i - 1, j]
-            if i >= 2:
-                acc -= u[0, i] * z[i - 2, j]
-            z[i, j] = acc / u[2, i]
-    x = np.empty_like(y)
-    for i in range(n - 1, -1, -1):  # U x = z
-        for j in range(m):
-            acc = z[i, j]
-            if i + 1 < n:
-                acc -= u[1, i + 1] * x[i + 1, j]
-            if i + 2 < n:
-                acc -= u[0, i + 2] * x[i + 2, j]
-            x[i, j] = acc / u[2, i]
-    return x
 
 
 def hp_lambda_at(lamb: float, fps: float, reference_fps: float) -> float:
@@ -83,7 +57,7 @@ def hp_trend(series: np.ndarray, lamb: float = 1.0) -> np.ndarray:
         d = np.array([[1.0, -2.0, 1.0]])
         return np.linalg.solve(np.eye(3) + lamb * d.T @ d, y.reshape(3, -1)).reshape(y.shape)
     flat = np.ascontiguousarray(y.reshape(n, -1))
-    return _substitute(_factor(n, float(lamb)), flat).reshape(y.shape)
+    return cho_solve_banded((_factor(n, float(lamb)), False), flat, check_finite=False).reshape(y.shape)
 
 
 # --- the smooth stage's worker -----------------------------------------------------------
