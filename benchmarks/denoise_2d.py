@@ -21,7 +21,7 @@ import os
 from pathlib import Path
 
 from pipeline.motion.lifting.evaluate import split
-from pipeline.motion.lifting.infer import load_models
+from pipeline.motion.lifting.infer import LiftOptions, load_models
 from pipeline.motion.mocap.sources import load_folder
 from pipeline.motion.shipped import SHIPPED_CONTACT, SHIPPED_LIFTER
 from pipeline.motion.world.evaluate import CAMERAS, PoseInput, evaluate_world
@@ -42,7 +42,8 @@ def training_sample(sequences: list) -> list:
 
 def on_training(models, sequences: list, lamb: float, pose_input: PoseInput) -> dict:
     """``evaluate_world``'s medians over all runs, on five of its ten cameras (one set-up at every pitch)."""
-    result = evaluate_world(models, sequences, pose_input=pose_input, denoise=lamb, cameras=CAMERAS[::2])
+    result = evaluate_world(models, sequences, pose_input=pose_input, lift=LiftOptions(denoise=lamb),
+                            cameras=CAMERAS[::2])
     runs = result["protocol"]["sequences"] * result["protocol"]["cameras"]
     return {"runs": runs, **{k: round(result["learned"]["all"][k], 2) for k in KEYS}}
 
@@ -67,7 +68,8 @@ def main() -> None:
     held = [s for s in split(sequences)[1] if s.feet is not None]
     for name, pose_input in CONDITIONS.items():
         for lamb in (float(x) for x in args.held_out.split(",")):
-            figures = evaluate_world(models, held, pose_input=pose_input, denoise=lamb)["learned"]["all"]
+            figures = evaluate_world(models, held, pose_input=pose_input,
+                                     lift=LiftOptions(denoise=lamb))["learned"]["all"]
             result["held_out"][f"{name} {lamb:g}"] = {k: figures[k] for k in KEYS}
             print("held out", name, lamb, result["held_out"][f"{name} {lamb:g}"], flush=True)
     args.out.write_text(json.dumps(result, indent=2) + "\n")

@@ -13,7 +13,7 @@ from pipeline.core.params import load_params, stage_params
 from pipeline.core.paths import MOTION24, WORLD
 from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint, item_files, read_meta
-from pipeline.motion.world.contact import HOLD_PROBABILITY, MIN_PLANTED_FRAMES, PLANTED_PROBABILITY
+from pipeline.motion.world.contact import ContactRules
 from pipeline.motion.world.worldfile import SCHEMA_VERSION
 
 CODE = code_fingerprint(*(f"pipeline.motion.world.{name}" for name in (
@@ -24,15 +24,13 @@ CODE = code_fingerprint(*(f"pipeline.motion.world.{name}" for name in (
 
 def run(root: Path) -> None:
     params = stage_params(load_params(root / "params.yaml"), "ground")
+    rules = ContactRules.from_params(params)
     items = []
     for src in item_files(root / MOTION24):
         inputs = {"motion24": read_meta(src).get("fingerprint", "")}
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out = root / WORLD / src.name
-        job = Deferred("pipeline.motion.world.segment:GroundJob", (
-            src, out, float(params.get("contact_threshold", PLANTED_PROBABILITY)),
-            int(params.get("min_contact_frames", MIN_PLANTED_FRAMES)),
-            float(params.get("contact_hold", HOLD_PROBABILITY)), params, inputs, fp))
+        job = Deferred("pipeline.motion.world.segment:GroundJob", (src, out, rules, params, inputs, fp))
         items.append(WorkItem(src.stem, fp, (out,), job))
     run_item_stage("ground", items, "pipeline.motion.world.segment:ground_segment", out_dirs=[root / WORLD],
                    params=params, light=True)

@@ -30,6 +30,7 @@ def run(root: Path) -> None:
     if contact is not None and not contact.exists():
         raise ModelMissingError(f"contact model {contact} not found: run the train_contact stage (dvc repro "
                                 "train_contact), or set lift.contact_model to '' for the ankle rule")
+    opts = Deferred("pipeline.motion.lifting.infer:LiftOptions.from_params", (params,))
     model_hash = sha256_file(model)
     contact_hash = sha256_file(contact) if contact is not None else ""
     items = []
@@ -38,9 +39,7 @@ def run(root: Path) -> None:
                   "contact_model": contact_hash}
         fp = fingerprint(SCHEMA_VERSION, inputs, params, CODE)
         out = root / POSE3D / clean_file.name
-        job = Deferred("pipeline.motion.lifting.infer:LiftJob", (
-            clean_file, out, float(params.get("min_score", 0.3)), bool(params.get("flip_tta", True)),
-            float(params.get("denoise_2d", 0.0)), params, inputs, fp))
+        job = Deferred("pipeline.motion.lifting.infer:LiftJob", (clean_file, out, opts, params, inputs, fp))
         items.append(WorkItem(clean_file.stem, fp, (out,), job))
     run_item_stage("lift", items, "pipeline.motion.lifting.infer:lift_segment", out_dirs=[root / POSE3D],
                    params=params, setup="pipeline.motion.lifting.infer:load_models",

@@ -173,24 +173,24 @@ def run_eval(root: Path, args: argparse.Namespace) -> int:
             from pipeline.motion.lifting.evaluate import evaluate_onnx
             from pipeline.motion.lifting.evaluate import format_report as format_table
 
-            model, _, denoise = _lift_models(root, args, contact=False)  # the project's, else the shipped lifter
+            model, _, lift, _ = _corpus_path(root, args, contact=False)  # the project's, else the shipped lifter
             result = evaluate_onnx(model, args.mocap, heldout_only=not args.all, flip=not args.no_flip,
-                                   max_seconds=args.seconds, denoise=denoise)
+                                   max_seconds=args.seconds, denoise=lift.denoise)
         elif args.what == "world":
             from pipeline.motion.world.evaluate import PoseInput, evaluate_folder
             from pipeline.motion.world.evaluate import format_report as format_table
 
-            model, contact, denoise = _lift_models(root, args)
+            model, contact, lift, rules = _corpus_path(root, args)
             result = evaluate_folder(model, contact, args.mocap, heldout_only=not args.all, seconds=args.seconds,
                                      pose_input=PoseInput(not args.clean_2d, args.frame_noise, args.pose_fps),
-                                     denoise=denoise)
+                                     lift=lift, rules=rules)
         elif args.what == "group":
             from pipeline.motion.world.group_eval import evaluate_group_folder
             from pipeline.motion.world.group_eval import format_report as format_table
 
-            model, contact, denoise = _lift_models(root, args)
+            model, contact, lift, rules = _corpus_path(root, args)
             result = evaluate_group_folder(model, contact, args.mocap, heldout_only=not args.all, groups=args.groups,
-                                           seconds=args.seconds, denoise=denoise)
+                                           seconds=args.seconds, lift=lift, rules=rules)
         elif args.what == "sync":
             from pipeline.motion.world.group_eval import format_sync as format_table
             from pipeline.motion.world.group_eval import sync_pairs
@@ -276,14 +276,16 @@ def _capture_eval_options(parser: argparse.ArgumentParser, seconds: float) -> No
     _json_out(parser)
 
 
-def _lift_models(root: Path, args: argparse.Namespace, contact: bool = True) -> tuple[Path, Path | None, float]:
+def _corpus_path(root: Path, args: argparse.Namespace, contact: bool = True) -> tuple:
     """The lifter and (with ``contact``) the contact model: the options', else params.yaml lift's,
     else (a fresh clone, where train_lifter and train_contact have not run) the shipped ones, saying so;
-    and the 2D's denoising: the option's, else params.yaml lift's."""
+    then the project's lift options and contact rules (``--denoise-2d`` in place of its own if given)."""
     from pipeline.core.params import project_or_default_params, stage_params
     from pipeline.motion.shipped import SHIPPED_CONTACT, SHIPPED_LIFTER, model_or_shipped
+    from pipeline.motion.world.evaluate import path_from_params
 
-    lift = stage_params(project_or_default_params(root), "lift")
+    params = project_or_default_params(root)
+    lift = stage_params(params, "lift")
     model, contact_model = args.model, args.contact if contact else None
     if model is None:
         model, notice = model_or_shipped(root / lift.get("model", "models/lifter.onnx"), SHIPPED_LIFTER, "lifter")
@@ -293,4 +295,4 @@ def _lift_models(root: Path, args: argparse.Namespace, contact: bool = True) -> 
         contact_model, notice = model_or_shipped(root / lift["contact_model"], SHIPPED_CONTACT, "contact model")
         if notice:
             print(f"dance3d: {notice}", file=sys.stderr)
-    return model, contact_model, float(lift.get("denoise_2d", 0.0) if args.denoise_2d is None else args.denoise_2d)
+    return (model, contact_model, *path_from_params(params, args.denoise_2d))

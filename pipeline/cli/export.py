@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from pipeline.cli.messages import complain, say
-from pipeline.cli.render import clip_of, motion_clips, world_clip_of
+from pipeline.cli.render import clip_of, contact_rules, motion_clips, world_clip_of
 from pipeline.core.errors import Dance3dError
 
 
@@ -93,10 +93,10 @@ def add_export(sub: argparse._SubParsersAction) -> None:
 
 
 def export_bvh(root: Path, args: argparse.Namespace) -> int:
-    return _export_smpl_bvh(args) if args.smpl else _export_world_bvh(args)
+    return _export_smpl_bvh(args) if args.smpl else _export_world_bvh(root, args)
 
 
-def _export_world_bvh(args: argparse.Namespace) -> int:
+def _export_world_bvh(root: Path, args: argparse.Namespace) -> int:
     from pipeline.core.storage import read_meta
     from pipeline.motion.world.scene import ground_scene
 
@@ -107,7 +107,7 @@ def _export_world_bvh(args: argparse.Namespace) -> int:
         return 2
     fps = float(read_meta(args.motion).get("fps", 24.0))
     # The corpus's grounding: in the segment's scene, one skeleton, the contact-anchored root, feet on the floor.
-    scene = ground_scene(clips, fps)
+    scene = ground_scene(clips, fps, contact_rules(root))
     if not args.all:
         grounded = scene.clips[[c.clip_id for c in clips].index(args.clip_id)]
         print(f"wrote {args.out}: " + _write_bvh(grounded, fps, args.out))

@@ -75,6 +75,15 @@ def motion_clips(motion: Path) -> list:
     return read_clips(motion)
 
 
+def contact_rules(root: Path):
+    """The project's contact rules (params.yaml ``ground``; the package's outside a project): a motion
+    file is grounded here as the ground stage grounds it."""
+    from pipeline.core.params import project_or_default_params, stage_params
+    from pipeline.motion.world.contact import ContactRules
+
+    return ContactRules.from_params(stage_params(project_or_default_params(root), "ground"))
+
+
 def clip_of(motion: Path, clip_id: str, clips: list | None = None):
     """One clip of a motion file (of ``clips``, its clips when already read), or None after saying
     which clips there are."""
@@ -125,7 +134,7 @@ def render_motion(root: Path, args: argparse.Namespace) -> int:
         from pipeline.motion.motionfile import read_clips
         from pipeline.motion.world.scene import ground_in_scene
 
-        grounded = ground_in_scene(read_clips(args.motion), args.clip_id, fps)
+        grounded = ground_in_scene(read_clips(args.motion), args.clip_id, fps, contact_rules(root))
         world = grounded.joints if grounded.feet is None else np.concatenate([grounded.joints, grounded.feet], 1)
         hands = None
         if clip.hands is not None:

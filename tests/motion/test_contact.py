@@ -216,7 +216,20 @@ def test_eval_world_scores_the_corpus_path_against_the_path_without_learned_cont
     assert learned["wa_mpjpe100_mm"] < baseline["wa_mpjpe100_mm"] and learned["jitter"] < baseline["jitter"] / 1.5
     assert learned["planted_height_mm"] < 20 < baseline["planted_height_mm"]
     assert result["protocol"]["denoise_2d"] == 10.0  # the lift stage's default, as the corpus is made
+    assert result["protocol"]["contact_rules"] == {"threshold": 0.4, "min_frames": 3, "hold": 0.1}  # the ground stage's
     assert set(result["learned"]["by_pitch"]) == {"-20", "-10", "+0", "+10", "+20"}
+
+
+def test_eval_world_and_eval_group_run_the_projects_own_lift_and_ground_params() -> None:
+    from pipeline.motion.world.evaluate import path_from_params
+
+    params = {"lift": {"min_score": 0.5, "flip_tta": False, "denoise_2d": 3.0},
+              "ground": {"contact_threshold": 0.6, "min_contact_frames": 5, "contact_hold": 0.2}}
+    lift, rules = path_from_params(params)
+    assert (lift.min_score, lift.flip, lift.denoise) == (0.5, False, 3.0)
+    assert (rules.threshold, rules.min_frames, rules.hold) == (0.6, 5, 0.2)
+    assert path_from_params(params, denoise=0.0)[0].denoise == 0.0  # --denoise-2d
+    assert path_from_params({})[0].denoise == 0.0  # a project from before lift.denoise_2d keeps its 2D as it was
 
 
 def test_the_ground_stage_writes_world_files_that_read_back_and_skips_them_when_up_to_date(mocap_dir: Path,

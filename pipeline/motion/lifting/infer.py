@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,6 +21,21 @@ JOINTS_OUT = {False: "h36m17", True: "h36m17+feet"}
 # training sequences.
 DENOISE_2D = 10.0
 DENOISE_FPS = 30.0
+
+
+@dataclass(frozen=True)
+class LiftOptions:
+    """How 2D clips are lifted (params.yaml ``lift``): what the lift stage does and what
+    ``dance3d eval world`` and ``eval group`` run on filmed motion capture."""
+    min_score: float = 0.3       # 2D joints below this confidence are interpolated over time first
+    flip: bool = True            # average with the mirrored input
+    denoise: float = DENOISE_2D  # HP lambda as at 30 fps on the 2D before lifting (0: none)
+
+    @classmethod
+    def from_params(cls, lift: Mapping) -> LiftOptions:
+        # A project whose params.yaml predates lift.denoise_2d keeps its 2D as it was made.
+        return cls(float(lift.get("min_score", 0.3)), bool(lift.get("flip_tta", True)),
+                   float(lift.get("denoise_2d", 0.0)))
 
 
 def fill_low_confidence(keypoints: np.ndarray, min_score: float) -> tuple[np.ndarray, np.ndarray]:
@@ -147,9 +162,7 @@ class LiftedClip:
 class LiftJob:
     clean: Path
     out: Path
-    min_score: float   # 2D joints below this are interpolated over time first
-    flip: bool         # average with the mirrored input
-    denoise: float     # HP lambda at 30 fps on the 2D before lifting (0: none)
+    opts: LiftOptions
     params: dict
     inputs: dict
     fingerprint: str
@@ -169,8 +182,7 @@ def load_lifter(path: str, threads: int = 1) -> Lifter:
 
 
 def lift_clips(models: LiftModels, keypoints: list[np.ndarray], feet: list[np.ndarray | None], width: int,
-               height: int, fps: float, min_score: float, flip: bool,
-               denoise: float = DENOISE_2D) -> list[LiftedClip]:
+               height: int, fps: float, opts: LiftOptions = LiftOptions()) -> list[LiftedClip]:
     """2D clips (T x 17 x 3 pixels and scores; heels and toes T x 4 x 3 or None) -> 3D, the root's
     path and the contact probabilities: what the lift stage writes, and what ``dance3d eval world``
     runs on filmed motion capture. The 2D is filled where unsure, then denoised (``denoise_2d``)."""
@@ -180,15 +192,16 @@ def lift_clips(models: LiftModels, keypoints: list[np.ndarray], feet: list[np.nd
         return []
     lifter = models.lifter
     full = [with_feet(k, f if f is not None else np.zeros((len(k), 4, 3))) for k, f in zip(keypoints, feet)]
-    filled = [(denoise_2d(xy, fps, denoise), mask) for xy, mask in (fill_low_confidence(k, min_score) for k in full)]
+    filled = [(denoise_2d(xy, fps, opts.denoise), mask)
+              for xy, mask in (fill_low_confidence(k, opts.min_score) for k in full)]
     inputs = [f[0] if lifter.feet else f[0][:, :17] for f in filled]
-    lifted = lifter.lift(inputs, width, height, flip=flip)
+    lifted = lifter.lift(inputs, width, height, flip=opts.flip)
     focal = assumed_focal(width, height)
     out = []
     for seen, joints, (xy, mask), heels_toes in zip(full, lifted, filled, feet):
         n = joints.shape[1]  # 21 for a lifter with feet: its heels and toe tips help place it
         joints, root = place_root(joints, xy[:, :n], focal, width, height, scores=seen[:, :n, 2])
-        contact = None if models.contact is None else models.contact.probabilities(xy, fps, flip=flip)
+        contact = None if models.contact is None else models.contact.probabilities(xy, fps, flip=opts.flip)
         rays = None if heels_toes is None else sight_rays(xy[:, 17:21], focal, width, height).astype(np.float32)
         out.append(LiftedClip(joints[:, :17], joints[:, 17:] if lifter.feet else None, root.astype(np.float32),
                               contact, mask[:, :17], rays))
@@ -212,8 +225,7 @@ def lift_segment(models: LiftModels, job: LiftJob) -> dict:
 
     clean = read_clean(job.clean)
     lifted = lift_clips(models, [c.keypoints for c in clean.clips], [c.feet for c in clean.clips],
-                        clean.segment.width, clean.segment.height, clean.segment.fps, job.min_score, job.flip,
-                        job.denoise)
+                        clean.segment.width, clean.segment.height, clean.segment.fps, job.opts)
     clips = [MotionClip(c.clip_id, c.track_id, c.frame.astype(np.int32), clean.time(c), lc.joints,
                         c.interpolated, lc.filled.sum(1).astype(np.int8), lc.root, lc.feet, lc.contact, lc.feet_rays,
                         *clip_hands(c))

@@ -12,6 +12,9 @@ their ankles when legs are bent. Skating stays measured at the ankles (comparabl
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import dataclass
+
 import numpy as np
 
 from pipeline.motion.mocap.skeleton import FEET_ANKLES_H36M
@@ -120,6 +123,21 @@ def pin_feet(world: np.ndarray, contact: np.ndarray, ease: int = 3) -> np.ndarra
 PLANTED_PROBABILITY = 0.4
 MIN_PLANTED_FRAMES = 3
 HOLD_PROBABILITY = 0.1
+
+
+@dataclass(frozen=True)
+class ContactRules:
+    """When contact probabilities make a heel or toe tip planted (params.yaml ``ground``): what the
+    ground stage does, and what ``dance3d eval world``, ``eval group``, render and export run."""
+    threshold: float = PLANTED_PROBABILITY  # planted above this probability ...
+    min_frames: int = MIN_PLANTED_FRAMES    # ... for at least this many frames in a row (corpus rate) ...
+    hold: float = HOLD_PROBABILITY          # ... and while above this one (hysteresis)
+
+    @classmethod
+    def from_params(cls, ground: Mapping) -> ContactRules:
+        return cls(float(ground.get("contact_threshold", PLANTED_PROBABILITY)),
+                   int(ground.get("min_contact_frames", MIN_PLANTED_FRAMES)),
+                   float(ground.get("contact_hold", HOLD_PROBABILITY)))
 
 
 def planted_points(probability: np.ndarray, threshold: float = PLANTED_PROBABILITY,

@@ -37,19 +37,20 @@ the per-frame root, the floor at the lowest foot point's 5th percentile).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from pipeline.core.errors import InputError
 from pipeline.motion.lifting.evaluate import Camera, add_pose_noise, camera_pose, split, view
-from pipeline.motion.lifting.infer import DENOISE_2D, LiftModels, lift_clips
+from pipeline.motion.lifting.infer import LiftModels, LiftOptions, lift_clips
 from pipeline.motion.mocap.sources import MocapSequence, first_seconds, load_folder, resample
 from pipeline.motion.motionfile import MotionClip
 from pipeline.motion.resample import interpolate_linear, resample_clip
 from pipeline.motion.smoothing import smooth_clip
-from pipeline.motion.world.contact import capture_contact, standing_level
+from pipeline.motion.world.contact import ContactRules, capture_contact, standing_level
 from pipeline.motion.world.gravity import up_error_deg
 from pipeline.motion.world.grounding import GroundedClip, ground_clip
 from pipeline.motion.world.scene import ground_scene
@@ -192,6 +193,23 @@ def scores(grounded: GroundedClip, truth: Truth, root_cam: np.ndarray | None, fp
     return row
 
 
+def path_options(lift: LiftOptions, rules: ContactRules) -> dict:
+    """The lift and ground options a result was made with, for its protocol."""
+    return {"denoise_2d": lift.denoise, "min_score": lift.min_score, "flip": lift.flip,
+            "contact_rules": {"threshold": rules.threshold, "min_frames": rules.min_frames, "hold": rules.hold}}
+
+
+def path_from_params(params: Mapping, denoise: float | None = None) -> tuple[LiftOptions, ContactRules]:
+    """A project's lift options and contact rules (params.yaml ``lift`` and ``ground``), as its corpus
+    is made; ``denoise`` in place of its own lambda if given."""
+    from pipeline.core.params import stage_params
+
+    lift = LiftOptions.from_params(stage_params(params, "lift"))
+    if denoise is not None:
+        lift = replace(lift, denoise=float(denoise))
+    return lift, ContactRules.from_params(stage_params(params, "ground"))
+
+
 def at_corpus_rate(lifted, lamb: float = 1.0, clip_id: str = "run", track_id: int = 1) -> MotionClip:
     """A lifted clip (``infer.LiftedClip``, at ``VIDEO_FPS``) as the smooth and resample stages leave
     it: HP-filtered, at ``CORPUS_FPS``."""
@@ -203,8 +221,8 @@ def at_corpus_rate(lifted, lamb: float = 1.0, clip_id: str = "run", track_id: in
 
 
 def film_and_ground(models: LiftModels, seq: MocapSequence, camera: Camera, rng: np.random.Generator,
-                    lamb: float = 1.0, pose_input: PoseInput = PoseInput(),
-                    denoise: float = DENOISE_2D) -> dict[str, dict]:
+                    lamb: float = 1.0, pose_input: PoseInput = PoseInput(), lift: LiftOptions = LiftOptions(),
+                    rules: ContactRules = ContactRules()) -> dict[str, dict]:
     """One run: ``seq`` (at ``VIDEO_FPS``) filmed by ``camera``, its 2D made as ``pose_input`` says,
     through the corpus's path, scored with the contact model (``learned``) and without (``baseline``)."""
     body = np.concatenate([seq.h36m, seq.feet], 1)
@@ -213,7 +231,7 @@ def film_and_ground(models: LiftModels, seq: MocapSequence, camera: Camera, rng:
     in_frame = float(((feet >= 0) & (feet <= [camera.width, camera.height])).all(-1).mean())
     keypoints = pose_input.keypoints(xy, rng)
     (lifted,) = lift_clips(models, [keypoints[:, :17]], [keypoints[:, 17:]], camera.width, camera.height,
-                           VIDEO_FPS, min_score=0.3, flip=True, denoise=denoise)
+                           VIDEO_FPS, lift)
     clip = at_corpus_rate(lifted, lamb)
     truth = _truth(seq, camera, clip.time)
     out = {}
@@ -221,7 +239,7 @@ def film_and_ground(models: LiftModels, seq: MocapSequence, camera: Camera, rng:
         if name == "learned" and probability is None:
             continue
         if name == "learned":  # the ground stage's path: a scene of one
-            grounded = ground_scene([clip], CORPUS_FPS).clips[0]
+            grounded = ground_scene([clip], CORPUS_FPS, rules).clips[0]
         else:
             grounded = ground_clip(clip.joints, clip.root, CORPUS_FPS, clip.feet, probability, feet_rays=clip.feet_rays)
         out[name] = {**scores(grounded, truth, grounded.root_camera, CORPUS_FPS), "feet_in_frame": in_frame}
@@ -230,7 +248,8 @@ def film_and_ground(models: LiftModels, seq: MocapSequence, camera: Camera, rng:
 
 def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: float = 20.0,
                    seed: int = 0, progress=None, pose_input: PoseInput = PoseInput(),
-                   denoise: float = DENOISE_2D, cameras: tuple[Camera, ...] = CAMERAS) -> dict:
+                   lift: LiftOptions = LiftOptions(), rules: ContactRules = ContactRules(),
+                   cameras: tuple[Camera, ...] = CAMERAS) -> dict:
     """Medians per source and over all, for each variant (``learned``, ``baseline``), and by pitch
     (of the pitches ``cameras`` has: the protocol's ten by default)."""
     rng = np.random.default_rng(seed)
@@ -240,8 +259,8 @@ def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: 
         if seq.frames < 2 * VIDEO_FPS:
             continue
         for camera in cameras:
-            for variant, row in film_and_ground(models, seq, camera, rng, pose_input=pose_input,
-                                                        denoise=denoise).items():
+            for variant, row in film_and_ground(models, seq, camera, rng, pose_input=pose_input, lift=lift,
+                                                rules=rules).items():
                 runs.append({"source": seq.source, "sequence": seq.name, "pitch": camera.pitch_deg,
                              "variant": variant, **row})
             if progress:
@@ -253,7 +272,7 @@ def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: 
 
     result: dict = {"protocol": {"sequences": len({r["sequence"] for r in runs}), "cameras": len(cameras),
                                  "seconds_each": seconds, "video_fps": VIDEO_FPS, "corpus_fps": CORPUS_FPS,
-                                 **pose_input.describe(), "denoise_2d": denoise}}
+                                 **pose_input.describe(), **path_options(lift, rules)}}
     for variant in dict.fromkeys(r["variant"] for r in runs):
         rows = [r for r in runs if r["variant"] == variant]
         result[variant] = {"all": medians(rows),
@@ -271,7 +290,8 @@ def evaluate_world(models: LiftModels, sequences: list[MocapSequence], seconds: 
 
 def evaluate_folder(lifter: Path, contact: Path | None, mocap: Path, *, heldout_only: bool = True,
                     seconds: float = 20.0, threads: int = 2, progress=None,
-                    pose_input: PoseInput = PoseInput(), denoise: float = DENOISE_2D) -> dict:
+                    pose_input: PoseInput = PoseInput(), lift: LiftOptions = LiftOptions(),
+                    rules: ContactRules = ContactRules()) -> dict:
     """``dance3d eval world`` on a folder ``load_folder`` reads: a folder of the known sources is cut
     to the train_lifter split's held-out sequences; a folder of your own capture is used whole."""
     from pipeline.motion.lifting.infer import load_models
@@ -287,7 +307,8 @@ def evaluate_folder(lifter: Path, contact: Path | None, mocap: Path, *, heldout_
         if path is not None and not Path(path).is_file():
             raise InputError(path, "no such model")
     models = load_models(str(lifter), str(contact) if contact else "", threads)
-    result = evaluate_world(models, sequences, seconds, progress=progress, pose_input=pose_input, denoise=denoise)
+    result = evaluate_world(models, sequences, seconds, progress=progress, pose_input=pose_input, lift=lift,
+                            rules=rules)
     result["protocol"].update(lifter=str(lifter), contact_model=str(contact) if contact else "none",
                               mocap=str(mocap), split="held-out sequences of the train_lifter split" if held
                               else "every sequence")

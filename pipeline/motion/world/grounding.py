@@ -21,6 +21,7 @@ from pipeline.motion.world.contact import (
     HOLD_PROBABILITY,
     MIN_PLANTED_FRAMES,
     PLANTED_PROBABILITY,
+    ContactRules,
     carry_feet,
     foot_contact,
     foot_planted,
@@ -130,7 +131,9 @@ def ground_clip(joints_cam: np.ndarray, root: np.ndarray | None, fps: float,
                         float(np.linalg.norm(fitted - world, axis=-1).mean()), camera, root)
 
 
-def ground_motion(clip, fps: float, **rules) -> GroundedClip:
-    """``ground_clip`` on a motion file's clip (``motionfile.MotionClip``), with all it carries;
-    ``rules``: ``ground_clip``'s contact thresholds."""
-    return ground_clip(clip.joints, clip.root, fps, clip.feet, clip.contact, feet_rays=clip.feet_rays, **rules)
+def ground_motion(clip, fps: float, rules: ContactRules = ContactRules(),
+                  frame: WorldFrame | None = None) -> GroundedClip:
+    """``ground_clip`` on a motion file's clip (``motionfile.MotionClip``), with all it carries,
+    with the contact ``rules``; in a scene's ``frame`` if given."""
+    return ground_clip(clip.joints, clip.root, fps, clip.feet, clip.contact, feet_rays=clip.feet_rays, frame=frame,
+                       threshold=rules.threshold, min_frames=rules.min_frames, hold=rules.hold)

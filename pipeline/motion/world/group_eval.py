@@ -48,11 +48,11 @@ import numpy as np
 
 from pipeline.motion.lifting.evaluate import add_pose_noise
 from pipeline.motion.lifting.geometry import look_at, project, to_camera
-from pipeline.motion.lifting.infer import DENOISE_2D, LiftModels, lift_clips
+from pipeline.motion.lifting.infer import LiftModels, LiftOptions, lift_clips
 from pipeline.motion.mocap.sources import MocapSequence, first_seconds, resample
 from pipeline.motion.resample import interpolate_linear
-from pipeline.motion.world.contact import standing_level
-from pipeline.motion.world.evaluate import CORPUS_FPS, VIDEO_FPS, at_corpus_rate, similarity
+from pipeline.motion.world.contact import ContactRules, standing_level
+from pipeline.motion.world.evaluate import CORPUS_FPS, VIDEO_FPS, at_corpus_rate, path_options, similarity
 from pipeline.motion.world.gravity import up_error_deg
 from pipeline.motion.world.grounding import ground_motion
 from pipeline.motion.world.scene import ground_scene
@@ -175,7 +175,8 @@ def group_scores(estimate: list[np.ndarray], truth: list[np.ndarray]) -> dict:
 
 
 def run_group(models: LiftModels, takes: list[MocapSequence], camera: GroupCamera, rng: np.random.Generator,
-              lamb: float = 1.0, together: bool = False, denoise: float = DENOISE_2D) -> dict[str, dict]:
+              lamb: float = 1.0, together: bool = False, lift: LiftOptions = LiftOptions(),
+              rules: ContactRules = ContactRules()) -> dict[str, dict]:
     """One group filmed by one camera, through the corpus's path: the scene and the baseline.
     ``together``: the takes were captured together and keep their real places (no formation)."""
     frames = min(t.frames for t in takes)
@@ -187,12 +188,12 @@ def run_group(models: LiftModels, takes: list[MocapSequence], camera: GroupCamer
         dancers = [place(t, spot) for t, spot in zip(cut, spots)]
     seen, roots, rotation, _ = film(dancers, camera, spots, rng)
     lifted = lift_clips(models, [k[:, :17] for k in seen], [k[:, 17:] for k in seen], WIDTH, HEIGHT, VIDEO_FPS,
-                        min_score=0.3, flip=True, denoise=denoise)
+                        lift)
     clips = [at_corpus_rate(lc, lamb, f"group_{k}", k) for k, lc in enumerate(lifted)]
     truth = [interpolate_linear(c.time, np.arange(len(root)) / VIDEO_FPS, root) for c, root in zip(clips, roots)]
     true_up = rotation @ np.array([0.0, 1.0, 0.0])
-    scene = ground_scene(clips, CORPUS_FPS)
-    alone = [ground_motion(c, CORPUS_FPS) for c in clips]
+    scene = ground_scene(clips, CORPUS_FPS, rules)
+    alone = [ground_motion(c, CORPUS_FPS, rules) for c in clips]
     hidden = float(np.mean([(k[..., 2] == 0).mean() for k in seen]))
     common = {"dancers": len(takes), "pitch": camera.pitch_deg, "setup": camera.setup, "hidden_share": hidden,
               "nearest_m": float(min(np.linalg.norm(r, axis=-1).min() for r in roots)),
@@ -211,7 +212,8 @@ def random_camera(rng: np.random.Generator) -> GroupCamera:
 
 def evaluate_groups(models: LiftModels, sequences: list[MocapSequence], *, groups: int = 8, seconds: float = 15.0,
                     sizes: tuple[int, ...] = SIZES, seed: int = 0, progress=None,
-                    real: list[list[MocapSequence]] = (), denoise: float = DENOISE_2D) -> dict:
+                    real: list[list[MocapSequence]] = (), lift: LiftOptions = LiftOptions(),
+                    rules: ContactRules = ContactRules()) -> dict:
     """``groups`` groups of each size in ``sizes``; medians per size and over all, per method.
     ``real``: groups captured together (``captured_together``), each filmed by ``groups`` cameras
     and summarised apart ("real")."""
@@ -225,7 +227,7 @@ def evaluate_groups(models: LiftModels, sequences: list[MocapSequence], *, group
     for size in sizes:
         for _ in range(groups):
             chosen = [takes[i] for i in rng.choice(len(takes), size, replace=False)]
-            for method, row in run_group(models, chosen, random_camera(rng), rng, denoise=denoise).items():
+            for method, row in run_group(models, chosen, random_camera(rng), rng, lift=lift, rules=rules).items():
                 runs.append({"method": method, "sequences": [t.name for t in chosen], **row})
             if progress:
                 progress()
@@ -233,8 +235,8 @@ def evaluate_groups(models: LiftModels, sequences: list[MocapSequence], *, group
     for group in real:
         cut = [first_seconds(resample(s, VIDEO_FPS), seconds) for s in group]
         for _ in range(groups):
-            for method, row in run_group(models, cut, random_camera(rng), rng, together=True,
-                                           denoise=denoise).items():
+            for method, row in run_group(models, cut, random_camera(rng), rng, together=True, lift=lift,
+                                         rules=rules).items():
                 real_runs.append({"method": method, "sequences": [t.name for t in group], **row})
             if progress:
                 progress()
@@ -250,7 +252,7 @@ def evaluate_groups(models: LiftModels, sequences: list[MocapSequence], *, group
 
     result: dict = {"protocol": {"groups_per_size": groups, "sizes": list(sizes), "seconds_each": seconds,
                                  "takes": len(takes), "video_fps": VIDEO_FPS, "corpus_fps": CORPUS_FPS,
-                                 "denoise_2d": denoise}}
+                                 **path_options(lift, rules)}}
     for method in ("scene", "baseline"):
         rows = [r for r in runs if r["method"] == method]
         result[method] = {"all": summary(rows),
@@ -265,7 +267,7 @@ def evaluate_groups(models: LiftModels, sequences: list[MocapSequence], *, group
 
 def evaluate_group_folder(lifter, contact, mocap, *, heldout_only: bool = True, groups: int = 8,
                           seconds: float = 15.0, threads: int = 2, progress=None,
-                          denoise: float = DENOISE_2D) -> dict:
+                          lift: LiftOptions = LiftOptions(), rules: ContactRules = ContactRules()) -> dict:
     """``dance3d eval group`` on a folder ``load_folder`` reads (held-out sequences of the known
     sources; a folder of your own capture is used whole)."""
     from pipeline.core.errors import InputError
@@ -284,7 +286,7 @@ def evaluate_group_folder(lifter, contact, mocap, *, heldout_only: bool = True, 
     models = load_models(str(lifter), str(contact) if contact else "", threads)
     try:
         result = evaluate_groups(models, sequences, groups=groups, seconds=seconds, progress=progress, real=real,
-                                 denoise=denoise)
+                                 lift=lift, rules=rules)
     except ValueError as exc:
         raise InputError(mocap, str(exc)) from exc
     result["protocol"].update(lifter=str(lifter), contact_model=str(contact) if contact else "none",

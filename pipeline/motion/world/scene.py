@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from pipeline.motion.world.contact import MIN_PLANTED_FRAMES, PLANTED_PROBABILITY, planted_points
+from pipeline.motion.world.contact import MIN_PLANTED_FRAMES, PLANTED_PROBABILITY, ContactRules, planted_points
 from pipeline.motion.world.gravity import BODY_PRIOR, WorldFrame, camera_from_up, estimate_up
 from pipeline.motion.world.grounding import GroundedClip, floor_level, ground_motion
 from pipeline.motion.world.trajectory import refine_root
@@ -96,13 +96,12 @@ def scaled(clip, k: float):
                    feet=None if clip.feet is None else clip.feet * k32)
 
 
-def ground_scene(clips: list, fps: float, **rules) -> Scene:
-    """Every clip of a segment (``motionfile.MotionClip``) grounded in one frame (module docstring);
-    ``rules``: ``ground_clip``'s contact thresholds. Without any planted point seen, each clip is
-    grounded alone and the scene is theirs side by side (its ``frame`` is the first clip's)."""
-    frame, scales = scene_frame(clips, threshold=rules.get("threshold", PLANTED_PROBABILITY),
-                                min_frames=rules.get("min_frames", MIN_PLANTED_FRAMES))
-    grounded = [ground_motion(scaled(c, k), fps, frame=frame, **rules) for c, k in zip(clips, scales)]
+def ground_scene(clips: list, fps: float, rules: ContactRules = ContactRules()) -> Scene:
+    """Every clip of a segment (``motionfile.MotionClip``) grounded in one frame (module docstring)
+    with the contact ``rules``. Without any planted point seen, each clip is grounded alone and the
+    scene is theirs side by side (its ``frame`` is the first clip's)."""
+    frame, scales = scene_frame(clips, threshold=rules.threshold, min_frames=rules.min_frames)
+    grounded = [ground_motion(scaled(c, k), fps, rules, frame=frame) for c, k in zip(clips, scales)]
     if frame is None:
         first = grounded[0].camera if grounded else camera_from_up(np.array([0.0, -1.0, 0.0]))
         return Scene(grounded, WorldFrame(first, 0.0), scales, shared=False)
@@ -112,7 +111,7 @@ def ground_scene(clips: list, fps: float, **rules) -> Scene:
     return Scene(moved, replace(frame, origin=frame.origin + centre), scales)
 
 
-def ground_in_scene(clips: list, clip_id: str, fps: float, **rules) -> GroundedClip:
+def ground_in_scene(clips: list, clip_id: str, fps: float, rules: ContactRules = ContactRules()) -> GroundedClip:
     """One clip as the corpus has it: grounded in the scene of all the clips of its segment."""
     ids = [c.clip_id for c in clips]
-    return ground_scene(clips, fps, **rules).clips[ids.index(clip_id)]
+    return ground_scene(clips, fps, rules).clips[ids.index(clip_id)]

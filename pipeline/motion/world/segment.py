@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from pipeline.motion.motionfile import read_motion
+from pipeline.motion.world.contact import ContactRules
 from pipeline.motion.world.scene import ground_scene
 from pipeline.motion.world.worldfile import world_clip, write_world
 
@@ -16,9 +17,7 @@ from pipeline.motion.world.worldfile import world_clip, write_world
 class GroundJob:
     motion24: Path
     out: Path
-    contact_threshold: float  # a point is planted above this probability ...
-    min_contact_frames: int   # ... for at least this many frames in a row ...
-    contact_hold: float       # ... and stays planted while above this one
+    rules: ContactRules       # when a heel or toe tip is planted
     params: dict
     inputs: dict
     fingerprint: str
@@ -28,8 +27,7 @@ def ground_segment(job: GroundJob) -> dict:
     """Ground every clip of a segment's 24 fps motion in one scene (``scene.ground_scene``);
     writes the segment's world file."""
     motion = read_motion(job.motion24)
-    scene = ground_scene(motion.clips, motion.fps, threshold=job.contact_threshold,
-                         min_frames=job.min_contact_frames, hold=job.contact_hold)
+    scene = ground_scene(motion.clips, motion.fps, job.rules)
     clips = [world_clip(clip.clip_id, clip.track_id, clip.frame, clip.time, grounded, scale, clip.hands,
                         clip.hand_presence)
              for clip, grounded, scale in zip(motion.clips, scene.clips, scene.scales)]
