@@ -106,3 +106,12 @@ def test_an_eval_given_all_its_inputs_runs_outside_a_project_with_the_packages_p
     monkeypatch.chdir(tmp_path)
     assert main(["eval", "lifter", "--mocap", str(mocap_dir / "perfume"), "--seconds", "2"]) == 0
     assert "P-MPJPE" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("what", ["pose2d", "hands"])
+def test_an_evaluation_names_its_missing_annotations_before_it_looks_for_any_model(what: str, tmp_path: Path,
+                                                                                   capsys) -> None:
+    missing = tmp_path / "annotations.json"
+    code = main(["--root", str(tmp_path), "eval", what, "--annotations", str(missing), "--images", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code != 0 and err.count("\n") == 1 and str(missing) in err, err

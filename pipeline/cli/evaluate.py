@@ -224,10 +224,11 @@ def run_eval(root: Path, args: argparse.Namespace) -> int:
 
 def _eval_pose2d(root: Path, args: argparse.Namespace) -> dict:
     from pipeline.core.params import project_or_default_params, stage_params
-    from pipeline.pose.evaluate import evaluate_pose2d
+    from pipeline.pose.evaluate import evaluate_pose2d, read_coco
     from pipeline.pose.models.loading import load_pose_models, model_files
     from pipeline.pose.pose2d import Pose2dOptions
 
+    read_coco(args.annotations)  # a bad file is named before any model loads
     params = stage_params(project_or_default_params(root), "pose2d")
     for key, value in (("detector", args.detector), ("pose_model", args.pose_model), ("det_score", args.det_score),
                        ("confirm_score", args.confirm_score), ("dark_mean", args.dark_mean),

@@ -133,16 +133,21 @@ def matching(coco, predictions: list[Prediction], image_ids: list[int]) -> dict:
             "joint_error_torso": per_joint}
 
 
-def evaluate_pose2d(annotations: Path, images: Path, detector, pose, *, gt_boxes: bool = False,
-                    opts: Pose2dOptions = Pose2dOptions(), describe: dict | None = None) -> dict:
-    """Scores overall, per source and per tier; ``describe`` names the models and options used."""
+def read_coco(annotations: Path):
+    """A COCO keypoint annotation file (pycocotools' ``COCO``), or an ``InputError`` naming it."""
     from pycocotools.coco import COCO
 
     try:
         with contextlib.redirect_stdout(io.StringIO()):
-            coco = COCO(str(annotations))
-    except (OSError, ValueError, KeyError, json.JSONDecodeError) as exc:
+            return COCO(str(annotations))
+    except (OSError, ValueError, KeyError, TypeError, json.JSONDecodeError) as exc:
         raise InputError(annotations, f"not a COCO keypoint annotation file: {exc}") from None
+
+
+def evaluate_pose2d(annotations: Path, images: Path, detector, pose, *, gt_boxes: bool = False,
+                    opts: Pose2dOptions = Pose2dOptions(), describe: dict | None = None) -> dict:
+    """Scores overall, per source and per tier; ``describe`` names the models and options used."""
+    coco = read_coco(annotations)
     predictions = predict(coco, images, detector, pose, gt_boxes, opts)
     groups: dict[str, list[int]] = {"all": sorted(coco.getImgIds())}
     for image in coco.loadImgs(coco.getImgIds()):
