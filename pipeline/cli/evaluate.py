@@ -86,8 +86,9 @@ def add_eval(sub: argparse._SubParsersAction) -> None:
         description="Project every sequence of a motion-capture folder through ten fixed cameras (five headings; a "
                     "portrait phone at 1.2 m, 3 m away, and a landscape camera on a 2 m stand, 5 m away; 26 mm-"
                     "equivalent lens), lift the clean and the noisy 2D (pose-model noise of expected OKS 0.80, 2% "
-                    "of joints missing) as the lift stage does, and report MPJPE and P-MPJPE (mm) per source next "
-                    "to the mean-pose baseline. Protocol: pipeline/motion/lifting/evaluate.py.",
+                    "of joints missing) as the lift stage does, and report MPJPE, N-MPJPE (the size forgiven) and "
+                    "P-MPJPE (mm) per source next to the mean-pose baseline. Protocol: "
+                    "pipeline/motion/lifting/evaluate.py.",
         epilog="motion capture: a folder of the known sources (as $DANCE3D_MOCAP; only the train_lifter split's "
                "held-out sequences are scored unless --all), one source folder, or a folder of Plug-in-Gait "
                ".c3d files and .npz files holding 'joints' (T x 17 x 3, Human3.6M order, metres, y up) and 'fps'.")

@@ -13,8 +13,9 @@ Protocol (``dance3d eval lifter`` and the train_lifter stage's metrics):
   COCO keypoint sigmas and the person's size, the error of a pose model whose expected OKS
   is 0.80, with 2 % of joints missing (carried over from the previous frame, as the lift
   stage's gap filling does), drawn with a fixed seed;
-- MPJPE (mm, root-relative, camera frame) and P-MPJPE (after a per-frame similarity
-  alignment), per source and over all frames; every source and camera weighs by its frames;
+- MPJPE (mm, root-relative, camera frame), N-MPJPE (after a per-frame scale: the size a
+  single camera cannot see) and P-MPJPE (after a per-frame similarity alignment), per source and
+  over all frames; every source and camera weighs by its frames;
 - baseline: the mean pose, i.e. the evaluated set's own mean root-relative pose in each
   camera (an oracle: it knows the test set's average), for scale;
 - a lifter with feet gets the heels and toe tips too, noisy with the sigma of COCO-WholeBody's
@@ -31,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.core.errors import InputError
-from pipeline.motion.lifting.geometry import look_at, mpjpe, p_mpjpe, project, to_camera
+from pipeline.motion.lifting.geometry import look_at, mpjpe, n_mpjpe, p_mpjpe, project, to_camera
 from pipeline.motion.mocap.sources import MocapSequence, first_seconds, keypoints_and_joints, resample
 from pipeline.motion.world.trajectory import assumed_focal
 from pipeline.pose.tracking import COCO_SIGMAS
@@ -173,7 +174,8 @@ def evaluate_lifter(lift: LiftFn, sequences: list[MocapSequence], *, fps: float 
                 bucket = per.setdefault(seq.source, {}).setdefault(condition, [])
                 mean = np.broadcast_to(mean_pose, target.shape)
                 row = [len(target), mpjpe(pred[:, :17], target[:, :17]), p_mpjpe(pred[:, :17], target[:, :17]),
-                       mpjpe(mean[:, :17], target[:, :17]), p_mpjpe(mean[:, :17], target[:, :17])]
+                       mpjpe(mean[:, :17], target[:, :17]), p_mpjpe(mean[:, :17], target[:, :17]),
+                       n_mpjpe(pred[:, :17], target[:, :17])]
                 if feet:
                     row += [mpjpe(pred[:, 17:], target[:, 17:]), mpjpe(mean[:, 17:], target[:, 17:])]
                 bucket.append(tuple(row))
@@ -183,7 +185,7 @@ def evaluate_lifter(lift: LiftFn, sequences: list[MocapSequence], *, fps: float 
 def _weighted(rows: list[tuple]) -> dict:
     arr = np.array(rows, dtype=np.float64)
     w = arr[:, 0] / arr[:, 0].sum()
-    keys = ("mpjpe_mm", "p_mpjpe_mm", "mean_pose_mpjpe_mm", "mean_pose_p_mpjpe_mm", "feet_mpjpe_mm",
+    keys = ("mpjpe_mm", "p_mpjpe_mm", "mean_pose_mpjpe_mm", "mean_pose_p_mpjpe_mm", "n_mpjpe_mm", "feet_mpjpe_mm",
             "mean_pose_feet_mpjpe_mm")[: arr.shape[1] - 1]
     return {k: round(1000 * float((arr[:, i + 1] * w).sum()), 1) for i, k in enumerate(keys)}
 
@@ -236,8 +238,8 @@ def evaluate_onnx(model: Path, mocap: Path, *, heldout_only: bool = True, flip: 
 
 def format_report(result: dict) -> str:
     """A plain-text table: one line per source, clean and noisy, beside the mean pose."""
-    lines = [f"{'source':28s} {'seq':>4s} {'sec':>6s} | {'MPJPE':>6s} {'P-MPJPE':>7s} | noisy {'MPJPE':>6s} "
-             f"{'P-MPJPE':>7s} | mean pose {'MPJPE':>6s} {'P-MPJPE':>7s}"]
+    lines = [f"{'source':28s} {'seq':>4s} {'sec':>6s} | {'MPJPE':>6s} {'N-MPJPE':>7s} {'P-MPJPE':>7s} | noisy "
+             f"{'MPJPE':>6s} {'P-MPJPE':>7s} | mean pose {'MPJPE':>6s} {'P-MPJPE':>7s}"]
     rows = [(name, r) for name, r in result["sources"].items()]
     rows.append(("all", {"sequences": result["protocol"]["sequences"], "seconds": result["protocol"]["seconds"],
                          "clean": result["clean"], "noisy": result["noisy"]}))
@@ -247,7 +249,8 @@ def format_report(result: dict) -> str:
     for name, r in rows:
         c, n = r["clean"], r["noisy"]
         lines.append(f"{name:28s} {r['sequences']:4d} {r['seconds']:6.0f} | {c['mpjpe_mm']:6.1f} "
-                     f"{c['p_mpjpe_mm']:7.1f} |       {n['mpjpe_mm']:6.1f} {n['p_mpjpe_mm']:7.1f} |           "
+                     f"{c['n_mpjpe_mm']:7.1f} {c['p_mpjpe_mm']:7.1f} |       {n['mpjpe_mm']:6.1f} "
+                     f"{n['p_mpjpe_mm']:7.1f} |           "
                      f"{c['mean_pose_mpjpe_mm']:6.1f} {c['mean_pose_p_mpjpe_mm']:7.1f}")
         if feet:
             lines[-1] += (f" |      {c['feet_mpjpe_mm']:6.1f} {n['feet_mpjpe_mm']:6.1f} "

@@ -63,6 +63,15 @@ def mpjpe(pred: np.ndarray, target: np.ndarray) -> float:
     return float(np.linalg.norm(pred - target, axis=-1).mean())
 
 
+def n_mpjpe(pred: np.ndarray, target: np.ndarray) -> float:
+    """MPJPE after the per-frame scale that brings pred nearest target (least squares; the
+    N-MPJPE of Rhodin et al. 2018 and VideoPose3D): what is left once the size is forgiven."""
+    p = pred.reshape(-1, *pred.shape[-2:])
+    t = target.reshape(-1, *target.shape[-2:])
+    scale = (p * t).sum((1, 2)) / np.maximum((p * p).sum((1, 2)), 1e-12)
+    return mpjpe(p * scale[:, None, None], t)
+
+
 def p_mpjpe(pred: np.ndarray, target: np.ndarray) -> float:
     """MPJPE after a per-frame similarity (Procrustes) alignment of pred to target."""
     return float(p_mpjpe_per_frame(pred, target).mean())
