@@ -170,8 +170,7 @@ def test_the_shipped_contact_model_says_what_made_it_and_holds_its_figure(mocap_
     recorded = json.loads(meta["metrics"])
     # Re-measured on the held-out protocol: the figure in the metadata is the model's.
     _, val = split(load_mocap(mocap_dir, LifterConfig()))
-    measured = evaluate_contact(load_contact_model(SHIPPED, 2), val, params["eval_seconds"], params["seed"] + 1,
-                                params.get("denoise_2d", 0.0))
+    measured = evaluate_contact(load_contact_model(SHIPPED, 2), val, params["eval_seconds"], params["seed"] + 1)
     assert abs(measured["contact_f1"] - recorded["contact_f1"]) < 0.002
     assert measured["contact_f1"] > measured["heldout"]["all"]["f1_all_planted"] + 0.05
 
@@ -292,16 +291,3 @@ def test_eval_world_in_a_fresh_clone_uses_the_shipped_models_and_says_so(mocap_d
     protocol = json.loads(out.read_text())["protocol"]
     assert protocol["lifter"] == str(LIFTER) and protocol["contact_model"] == str(CONTACT)
 
-
-def test_the_contact_model_trains_on_2d_denoised_as_the_lift_stage_feeds_it(mocap_dir: Path) -> None:
-    from pipeline.motion.mocap.sources import load_source, resample
-    from pipeline.motion.world.contact_train import ContactConfig, ContactSampler
-
-    sequences = [resample(s, FPS) for s in load_source(mocap_dir, "perfume")]
-
-    def roughness(denoise: float) -> float:
-        x, y = ContactSampler(sequences, ContactConfig(batch=8, denoise_2d=denoise)).batch()
-        assert x.shape[0] == y.shape[0] == 8 * 16
-        return float(np.abs(np.diff(x, 2, axis=1)).mean())
-
-    assert roughness(10.0) < 0.5 * roughness(0.0)
