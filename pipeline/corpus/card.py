@@ -333,9 +333,16 @@ Joint order: {joints}.
 Frame rate and alignment: exactly {fps:g} fps (`common.fps`). Motion frame k and audio feature
 frame k of a window are both centred at k/{fps:g} s on the segment clock (audio resampled to
 {round(fps * 512)} Hz, hop 512, centred frames), so there is no drift. Key poses at beats are
-`motion[beat_frames]`. Motion was lifted from 2D keypoints by a
-VideoPose3D-style model, smoothed with a Hodrick-Prescott filter (lambda from params) and
-resampled with a cubic spline. Audio was loudness-normalised to EBU R128 before features.
+`motion[beat_frames]`. Motion was lifted from 2D keypoints (first freed of the pose model's
+frame-to-frame noise by a Hodrick-Prescott filter, `lift.denoise_2d`) by a VideoPose3D-style
+model, smoothed with a Hodrick-Prescott filter (lambda from params) and resampled with a cubic
+spline. Audio was loudness-normalised to EBU R128 before features.
+
+**A dancer's size is the lifter's guess.** One camera does not see how big a dancer is: the
+lifter gives everyone whose 2D looks like an adult's an adult's size, so a child dancing alone
+comes out too large (`dance3d eval lifter` reports MPJPE beside N-MPJPE, the error once the size
+is forgiven, per source). Dancers of one scene are scaled onto its one floor, so their sizes
+relative to each other hold.
 
 ## World motion
 
