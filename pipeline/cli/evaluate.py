@@ -274,14 +274,14 @@ def _capture_eval_options(parser: argparse.ArgumentParser, seconds: float) -> No
     parser.add_argument("--seconds", type=float, default=seconds,
                         help=f"at most this much of each sequence (default {seconds:g})")
     parser.add_argument("--denoise-2d", type=float, default=None, metavar="LAMBDA", help="the 2D's HP lambda as at 30 "
-                        "fps before lifting (default: params.yaml lift.denoise_2d, as the lift stage; 0: none)")
+                        "fps before lifting (default: params.yaml lift.denoise_2d, as the lift stage; 0: none). The "
+                        "other lift and ground options are params.yaml's too, as the corpus is made")
     _json_out(parser)
 
 
 def _corpus_path(root: Path, args: argparse.Namespace, contact: bool = True) -> tuple:
-    """The lifter and (with ``contact``) the contact model: the options', else params.yaml lift's,
-    else (a fresh clone, where train_lifter and train_contact have not run) the shipped ones, saying so;
-    then the project's lift options and contact rules (``--denoise-2d`` in place of its own if given)."""
+    """The lifter and (with ``contact``) the contact model: the options', else params.yaml lift's, else (a fresh
+    clone) the shipped ones, saying so; then the project's lift options and contact rules (``path_from_params``)."""
     from pipeline.core.params import project_or_default_params, stage_params
     from pipeline.motion.shipped import SHIPPED_CONTACT, SHIPPED_LIFTER, model_or_shipped
     from pipeline.motion.world.evaluate import path_from_params
