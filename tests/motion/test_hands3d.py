@@ -158,5 +158,5 @@ def test_the_stages_carry_the_dancers_hands_from_2d_into_the_world_on_her_wrists
 
     result = evaluate(world_clips(project))
     fingers = result["all"]["fingers"]
-    assert fingers["hands"] == 2 and fingers["worst_joint_median_mm"] < 15 and 0 <= fingers["past_range_share"] < 0.05
+    assert fingers["hands"] == 2 and fingers["worst_joint_median_mm"] < 15 and 0 <= fingers["at_range_share"] < 0.05
     assert "fingers on SMPL-H (2 hands" in format_report(result)

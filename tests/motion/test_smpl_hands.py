@@ -8,6 +8,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from pipeline.motion.smpl.hands import (
+    CHAINS,
+    FINGER_RANGE_DEG,
     SMPLH_JOINTS,
     SMPLH_PARENTS,
     clip_rest,
@@ -95,6 +97,24 @@ def test_an_unseen_hand_keeps_its_wrist_and_straight_fingers_and_a_seen_one_turn
     again = hand_forward(np.zeros((frames, 3)), glob[:, 20], solved.fingers[:, :15], rest)
     assert np.abs(again - points).max() < 1e-9
     assert solved.poses.shape == (frames, 90)
+
+
+def test_no_finger_joint_is_bent_past_what_a_finger_can_bend() -> None:
+    """The hand model's noisy frames can fold a finger back on itself; SMPL-H gets it bent as far as a
+    finger joint goes (the rest of the chain still reaches for its points), other joints as seen."""
+    rest = template_rest(_template(), 0)
+    points, fingers = _posed(rest, np.eye(3), 4, 5)
+    side_axis = frame(rest.knuckles[1], rest.knuckles[0] - rest.knuckles[2])[:, 1]
+    folded = fingers.copy()
+    folded[:, 3 + 1] = Rotation.from_rotvec(np.radians(150) * side_axis).as_matrix()  # the middle finger's 2nd joint
+    bent = hand_forward(np.zeros((4, 3)), np.broadcast_to(np.eye(3), (4, 3, 3)), folded, rest)
+    _, solved = solve_hand(bent, rest, np.broadcast_to(np.eye(3), (4, 3, 3)))
+    angles = np.degrees(np.linalg.norm(Rotation.from_matrix(solved.reshape(-1, 3, 3)).as_rotvec(), axis=-1))
+    assert angles.max() <= FINGER_RANGE_DEG + 1e-6
+    assert np.allclose(angles.reshape(4, 15)[:, 4], FINGER_RANGE_DEG)
+    again = hand_forward(np.zeros((4, 3)), np.broadcast_to(np.eye(3), (4, 3, 3)), solved, rest)
+    index = list(CHAINS[0])
+    assert np.abs(again[:, index] - bent[:, index]).max() < 1e-9  # a finger bent less lands on its points
 
 
 def test_a_template_of_the_wrong_shape_is_refused_with_its_shape() -> None:

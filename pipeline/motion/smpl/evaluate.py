@@ -18,7 +18,7 @@ offsets times the clip's scale) is compared with the joints it came from:
 - with hands (``pose2d.hands``), SMPL-H's fingers (``hands.retarget_hands``) posed again by forward
   kinematics on the clip's own rest hands against the world hands, about the wrist: per joint the
   distance in mm (median, 95th percentile and the worst joint's median), and the share of finger
-  joints bent past ``FINGER_RANGE_DEG``, which no finger joint reaches (the hand model's noise).
+  joints held at ``hands.FINGER_RANGE_DEG``, where the hand model folded them further (its noise).
 
 Baseline beside the figures: the SMPL rest skeleton placed at each frame's hips with no rotation
 (what a trainer would get from an exporter that wrote no poses): its mapped-point error.
@@ -36,12 +36,12 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.motion.smpl import checks
+from pipeline.motion.smpl.hands import FINGER_RANGE_DEG
 from pipeline.motion.smpl.kinematics import forward
 from pipeline.motion.smpl.proportions import own_offsets
 from pipeline.motion.smpl.retarget import SmplMotion, retarget
 
 LIMBS = ("knees", "ankles", "feet", "shoulders", "elbows", "wrists")
-FINGER_RANGE_DEG = 110.0  # about the largest active flexion of any finger joint (the PIP: 100-110 degrees)
 
 
 @dataclass(frozen=True)
@@ -168,7 +168,7 @@ def _fingers(rows: list[dict]) -> dict | None:
     worst = max(float(np.median(e, axis=0).max()) for e in hands)
     return {"hands": len(hands), **_figures(1000 * np.concatenate([e.ravel() for e in hands])),
             "worst_joint_median_mm": round(1000 * worst, 1),
-            "past_range_share": round(float(np.mean(angles > FINGER_RANGE_DEG)), 4)}
+            "at_range_share": round(float(np.mean(angles > FINGER_RANGE_DEG - 0.01)), 4)}
 
 
 def summarise(rows: list[dict]) -> dict:
@@ -237,8 +237,8 @@ def format_report(result: dict) -> str:
     if fingers:
         lines.append(f"fingers on SMPL-H ({fingers['hands']} hands, about the wrist, against the world hands): "
                      f"{fingers['median_mm']:.1f} / {fingers['p95_mm']:.1f} mm median / p95, the worst joint's median "
-                     f"{fingers['worst_joint_median_mm']:.1f} mm; {100 * fingers['past_range_share']:.1f} % of finger "
-                     f"joints bent past {FINGER_RANGE_DEG:g} degrees")
+                     f"{fingers['worst_joint_median_mm']:.1f} mm; {100 * fingers['at_range_share']:.1f} % of finger "
+                     f"joints held at {FINGER_RANGE_DEG:g} degrees (the hand model folded them further)")
     if result["all"]["frames_outside_range"]:
         lines.append("frames outside range: " + ", ".join(f"{k} {v}" for k, v in
                                                           result["all"]["frames_outside_range"].items()))

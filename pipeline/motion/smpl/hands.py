@@ -50,6 +50,9 @@ SMPLH_PARENTS = PARENTS[:22] + tuple(
 _LONG = (np.array([1.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0]))  # a rest hand's wrist -> middle knuckle
 _SIDE = np.array([0.0, 0.0, 1.0])                                   # ... and its pinky -> index knuckle
 PALM_ROUNDS = 3  # Procrustes rounds for a clip's mean palm (it settles within a few)
+# About the largest active flexion of any finger joint (the PIP: 100-110 degrees): a finger the hand
+# model folds further (its noisy frames) is bent this far, and the rest of its chain reaches on.
+FINGER_RANGE_DEG = 110.0
 
 
 @dataclass(frozen=True)
@@ -119,7 +122,8 @@ def _best_rotation(rest: np.ndarray, seen: np.ndarray) -> np.ndarray:
 
 def solve_hand(hand: np.ndarray, rest: RestHand, parent: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(T x 3 x 3 the wrist's local rotation, T x 15 x 3 x 3 the fingers' local rotations) that put
-    ``rest`` on the world ``hand`` (T x 21 x 3); ``parent``: the elbow's world rotations (T x 3 x 3)."""
+    ``rest`` on the world ``hand`` (T x 21 x 3), no finger joint bent past ``FINGER_RANGE_DEG``;
+    ``parent``: the elbow's world rotations (T x 3 x 3)."""
     points = np.asarray(hand, np.float64)
     chains = _chain_points(points)
     wrist = _best_rotation(rest.knuckles, chains[:, :, 0] - points[:, None, 0])
@@ -127,7 +131,7 @@ def solve_hand(hand: np.ndarray, rest: RestHand, parent: np.ndarray) -> tuple[np
     for f in range(5):
         above = wrist
         for k in range(3):
-            turned = swing(above @ rest.bones[f, k], chains[:, f, k + 1] - chains[:, f, k]) @ above
+            turned = swing(above @ rest.bones[f, k], chains[:, f, k + 1] - chains[:, f, k], FINGER_RANGE_DEG) @ above
             local[:, 3 * f + k] = np.swapaxes(above, -1, -2) @ turned
             above = turned
     return np.swapaxes(parent, -1, -2) @ wrist, local
