@@ -15,7 +15,10 @@ from pipeline.core.storage import code_fingerprint, fingerprint, item_files, rea
 from pipeline.motion.motionfile import SCHEMA_VERSION
 
 CODE = code_fingerprint("pipeline.motion.lifting.infer", "pipeline.motion.world.contact_model",
-                        "pipeline.motion.world.trajectory",  # the root path and the sight rays
+                        "pipeline.motion.lifting.geometry",  # the lifter's input normalisation
+                        "pipeline.motion.mocap.skeleton",  # the mirror tables of the flip averaging
+                        "pipeline.motion.world.trajectory", "pipeline.motion.world.bones",  # the root path, rays
+                        "pipeline.motion.resample",  # the contact model's time axis
                         "pipeline.motion.smoothing",  # the 2D's denoising
                         "pipeline.motion.hands")
 

@@ -43,3 +43,10 @@ def test_every_module_a_stage_fingerprints_is_a_dvc_dependency_of_the_stage(stag
 
 def test_the_ground_stage_fingerprints_the_smplh_hands_its_world_files_carry(monkeypatch) -> None:
     assert {"pipeline.motion.smpl.hands", "pipeline.motion.smpl.retarget"} <= set(fingerprinted("ground", monkeypatch))
+
+
+def test_the_lift_stage_fingerprints_what_its_motion_is_computed_by(monkeypatch) -> None:
+    """The lifter's input normalisation and mirror tables, the root placement's one skeleton and the
+    contact model's resampling: a change to any of them redoes the lifted files."""
+    assert {"pipeline.motion.lifting.geometry", "pipeline.motion.mocap.skeleton", "pipeline.motion.world.bones",
+            "pipeline.motion.resample"} <= set(fingerprinted("lift", monkeypatch))
