@@ -23,7 +23,9 @@ from pipeline.pose.models.loading import model_hashes, model_names
 from pipeline.pose.propose import SCHEMA_VERSION, SUMMARY, ProposeOptions, propose_video, write_summary
 
 log = logging.getLogger("dance3d.propose_segments")
-CODE = code_fingerprint("pipeline.pose.propose")
+CODE = code_fingerprint("pipeline.pose.propose", "pipeline.ingest.shots",  # the cues, the cuts
+                        "pipeline.pose.pose2d", "pipeline.pose.models.pose", "pipeline.pose.tracking",  # people
+                        "pipeline.ingest.segmentvideo", "pipeline.ingest.media", "pipeline.ingest.trim")  # frames
 
 
 def run(root: Path) -> None:

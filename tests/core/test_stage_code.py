@@ -50,3 +50,8 @@ def test_the_lift_stage_fingerprints_what_its_motion_is_computed_by(monkeypatch)
     contact model's resampling: a change to any of them redoes the lifted files."""
     assert {"pipeline.motion.lifting.geometry", "pipeline.motion.mocap.skeleton", "pipeline.motion.world.bones",
             "pipeline.motion.resample"} <= set(fingerprinted("lift", monkeypatch))
+
+
+def test_the_proposals_fingerprint_the_shot_cuts_and_the_people_finder_they_are_made_from(monkeypatch) -> None:
+    assert {"pipeline.pose.propose", "pipeline.ingest.shots", "pipeline.pose.pose2d",
+            "pipeline.pose.tracking"} <= set(fingerprinted("propose_segments", monkeypatch))
