@@ -26,7 +26,8 @@ from pipeline.music.beats import DEFAULT_TRACKER, TRACKERS
 from pipeline.music.featurefile import SCHEMA_VERSION
 
 log = logging.getLogger("dance3d.audio")
-CODE = code_fingerprint(pipeline.music.audio, pipeline.music.beats, pipeline.music.featurefile)
+CODE = code_fingerprint(pipeline.music.audio, pipeline.music.beats, pipeline.music.featurefile,
+                        "pipeline.ingest.segmentvideo")
 
 
 def run(root: Path) -> None:

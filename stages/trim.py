@@ -25,7 +25,8 @@ from pipeline.ingest.trim import PlanJob, TrimOptions, plan_job
 from pipeline.pose.proposed import proposals_by_video
 
 log = logging.getLogger("dance3d.trim")
-CODE = code_fingerprint(pipeline.ingest.trim, pipeline.ingest.segmentvideo, pipeline.ingest.media)
+CODE = code_fingerprint(pipeline.ingest.trim, pipeline.ingest.segmentvideo, pipeline.ingest.media,
+                        "pipeline.ingest.segments")
 
 
 def run(root: Path) -> None:
