@@ -19,7 +19,8 @@ from pipeline.motion.world.worldfile import SCHEMA_VERSION
 CODE = code_fingerprint(*(f"pipeline.motion.world.{name}" for name in (
     "grounding", "contact", "gravity", "trajectory", "rotations", "worldfile", "scene", "bones", "segment")),
     "pipeline.motion.hands", "pipeline.motion.smpl.retarget", "pipeline.motion.smpl.kinematics",
-    "pipeline.motion.smpl.skeleton", "pipeline.motion.smpl.hands")
+    "pipeline.motion.smpl.skeleton", "pipeline.motion.smpl.hands", "pipeline.motion.mocap.skeleton",
+    "pipeline.pose.hands")
 
 
 def run(root: Path) -> None:

@@ -46,8 +46,10 @@ def test_every_module_a_stage_fingerprints_is_a_dvc_dependency_of_the_stage(stag
 COMPUTED_BY = {
     "lift": {"pipeline.motion.lifting.geometry",  # the lifter's input normalisation
              "pipeline.motion.mocap.skeleton",  # the mirror tables of the flip averaging
-             "pipeline.motion.world.bones", "pipeline.motion.resample"},  # the root's skeleton, the contact's clock
-    "ground": {"pipeline.motion.smpl.hands", "pipeline.motion.smpl.retarget"},  # SMPL and SMPL-H in the world files
+             "pipeline.motion.world.bones", "pipeline.motion.resample",  # the root's skeleton, the contact's clock
+             "pipeline.pose.hands"},  # the hands' presence threshold
+    "ground": {"pipeline.motion.smpl.hands", "pipeline.motion.smpl.retarget",  # SMPL and SMPL-H in the world files
+               "pipeline.motion.mocap.skeleton", "pipeline.pose.hands"},  # the feet and hand tables, rotations
     "propose_segments": {"pipeline.ingest.shots", "pipeline.pose.pose2d", "pipeline.pose.tracking"},  # cuts, people
     "clean": {"pipeline.pose.tracking"},  # the OKS of the identity proposals
     "trim": {"pipeline.ingest.segments"},  # how annotation rows become segments
