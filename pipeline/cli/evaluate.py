@@ -229,7 +229,7 @@ def _eval_pose2d(root: Path, args: argparse.Namespace) -> dict:
     from pipeline.pose.models.loading import load_pose_models, model_files
     from pipeline.pose.pose2d import Pose2dOptions
 
-    read_coco(args.annotations)  # a bad file is named before any model loads
+    coco = read_coco(args.annotations)  # a bad file is named before any model loads
     params = stage_params(project_or_default_params(root), "pose2d")
     for key, value in (("detector", args.detector), ("pose_model", args.pose_model), ("det_score", args.det_score),
                        ("confirm_score", args.confirm_score), ("dark_mean", args.dark_mean),
@@ -244,7 +244,7 @@ def _eval_pose2d(root: Path, args: argparse.Namespace) -> dict:
     opts = Pose2dOptions.from_params(params)
     describe.update(confirm_score=opts.confirm_score, dark_mean=opts.dark_mean)
     return evaluate_pose2d(args.annotations, args.images, models.detector, models.pose, gt_boxes=args.gt_boxes,
-                           opts=opts, describe=describe)
+                           opts=opts, describe=describe, coco=coco)
 
 
 def _eval_hands(root: Path, args: argparse.Namespace) -> dict:

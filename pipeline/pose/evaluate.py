@@ -145,9 +145,10 @@ def read_coco(annotations: Path):
 
 
 def evaluate_pose2d(annotations: Path, images: Path, detector, pose, *, gt_boxes: bool = False,
-                    opts: Pose2dOptions = Pose2dOptions(), describe: dict | None = None) -> dict:
-    """Scores overall, per source and per tier; ``describe`` names the models and options used."""
-    coco = read_coco(annotations)
+                    opts: Pose2dOptions = Pose2dOptions(), describe: dict | None = None, coco=None) -> dict:
+    """Scores overall, per source and per tier; ``describe`` names the models and options used;
+    ``coco``: the annotation file as ``read_coco`` already read it."""
+    coco = read_coco(annotations) if coco is None else coco
     predictions = predict(coco, images, detector, pose, gt_boxes, opts)
     groups: dict[str, list[int]] = {"all": sorted(coco.getImgIds())}
     for image in coco.loadImgs(coco.getImgIds()):
