@@ -34,7 +34,7 @@ class LiftOptions:
     @classmethod
     def from_params(cls, lift: Mapping) -> LiftOptions:
         # A project whose params.yaml predates lift.denoise_2d keeps its 2D as it was made.
-        return cls(float(lift.get("min_score", 0.3)), bool(lift.get("flip_tta", True)),
+        return cls(float(lift.get("min_score", cls.min_score)), bool(lift.get("flip_tta", cls.flip)),
                    float(lift.get("denoise_2d", 0.0)))
 
 

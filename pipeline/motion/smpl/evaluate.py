@@ -168,6 +168,7 @@ def _fingers(rows: list[dict]) -> dict | None:
     worst = max(float(np.median(e, axis=0).max()) for e in hands)
     return {"hands": len(hands), **_figures(1000 * np.concatenate([e.ravel() for e in hands])),
             "worst_joint_median_mm": round(1000 * worst, 1),
+            # held at the limit, to within the rotation's round trip through axis-angle
             "at_range_share": round(float(np.mean(angles > FINGER_RANGE_DEG - 0.01)), 4)}
 
 
