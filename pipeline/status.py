@@ -49,7 +49,7 @@ def summarise(root: Path) -> str:
         lines.append("download: not run yet (dance3d run download, or dvc repro)")
     proposed = item_files(root / SEGMENT_PROPOSALS)
     if proposed:
-        from pipeline.pose.propose import read_proposals
+        from pipeline.pose.proposed import read_proposals
 
         found = [read_proposals(f) for f in proposed]
         seconds = sum(s["end"] - s["start"] for f in found for s in f["segments"])

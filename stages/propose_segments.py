@@ -20,7 +20,8 @@ from pipeline.core.stage import run_stage, setup_logging
 from pipeline.core.storage import code_fingerprint, fingerprint, item_files
 from pipeline.ingest.catalog import read_ledger
 from pipeline.pose.models.loading import model_hashes, model_names
-from pipeline.pose.propose import SCHEMA_VERSION, SUMMARY, ProposeOptions, propose_video, write_summary
+from pipeline.pose.propose import SUMMARY, ProposeOptions, propose_video, write_summary
+from pipeline.pose.proposed import SCHEMA_VERSION
 
 log = logging.getLogger("dance3d.propose_segments")
 CODE = code_fingerprint("pipeline.pose.propose", "pipeline.ingest.shots",  # the cues, the cuts

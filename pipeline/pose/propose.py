@@ -33,6 +33,7 @@ from pipeline.ingest.media import VideoInfo, ffmpeg_exe
 from pipeline.ingest.segmentvideo import SegmentVideo
 from pipeline.ingest.shots import CutFinder
 from pipeline.ingest.trim import output_size
+from pipeline.pose.proposed import SCHEMA_VERSION, read_proposals
 
 log = logging.getLogger(__name__)
 AUDIO_RATE = 22050
@@ -333,7 +334,6 @@ def propose(tl: Timeline, opts: ProposeOptions) -> Proposals:
 
 # --- the propose_segments stage's file and worker ------------------------------------------
 
-SCHEMA_VERSION = 1
 SUMMARY = "segments.csv"  # every proposal of every video, for people to read (the stage's own file)
 
 
@@ -355,14 +355,6 @@ def write_proposals(path: Path, video_id: str, tl: Timeline, found: Proposals, o
     write_parquet(table, path, schema_version=SCHEMA_VERSION, params=params,
                   extra={"fingerprint": fingerprint, "video_id": video_id, "duration": tl.duration, "cuts": tl.cuts,
                          **found.as_dict()})
-
-
-def read_proposals(path: Path) -> dict:
-    """The metadata of a proposals file: video_id, duration, cuts, segments, shots (and the per-second table)."""
-    from pipeline.core.storage import read_meta, read_rows
-
-    meta = read_meta(path)
-    return {**{k: meta[k] for k in ("video_id", "duration", "cuts", "segments", "shots")}, "seconds": read_rows(path)}
 
 
 def write_summary(folder: Path, files: list[Path]) -> Path:

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from pipeline.ingest.catalog import read_index
-from pipeline.pose.propose import ProposeOptions, Timeline, boundary_errors, propose, read_proposals
+from pipeline.pose.propose import ProposeOptions, Timeline, boundary_errors, propose
+from pipeline.pose.proposed import read_proposals
 from stages import download, propose_segments, trim
 from tests.conftest import ffmpeg, set_params
 

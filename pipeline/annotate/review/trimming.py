@@ -62,7 +62,7 @@ class TrimModel:
         return rows
 
     def proposals(self, video_id: str) -> dict:
-        from pipeline.pose.propose import read_proposals
+        from pipeline.pose.proposed import read_proposals
 
         path = self.root / SEGMENT_PROPOSALS / f"{video_id}.parquet"
         return read_proposals(path) if path.exists() else {"segments": [], "shots": [], "cuts": [], "seconds": []}
