@@ -25,9 +25,9 @@ import cv2
 import numpy as np
 
 from pipeline.core.errors import InputError
+from pipeline.pose.boxes import iou_matrix
 from pipeline.pose.models.pose import COCO17
 from pipeline.pose.pose2d import Pose2dOptions, find_people, lift_dark
-from pipeline.pose.tracking import iou_matrix
 
 TORSO = (5, 12)  # left shoulder, right hip
 

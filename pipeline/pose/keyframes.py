@@ -22,7 +22,7 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from pipeline.pose.tracking import iou_matrix
+from pipeline.pose.boxes import iou_matrix
 
 MIN_IOU = 0.2  # two keyframes' boxes overlapping less than this are not the same person
 CHANGE_MIN_HEIGHT = 0.3  # people_change: a person this tall (share of the tallest) coming or going counts

@@ -31,12 +31,12 @@ import numpy as np
 from pipeline.core.threads import threaded
 from pipeline.ingest.media import Frame
 from pipeline.ingest.segmentvideo import SegmentVideo, frames_of
+from pipeline.pose.boxes import iou_matrix
 from pipeline.pose.hands import HandModels, hands_array
 from pipeline.pose.keyframes import drawn_boxes, held, in_between, keyframe_step, newcomers, people_change
 from pipeline.pose.models.detector import Detections, FusedDetector, PicoDetDetector, RTMDetDetector, largest
 from pipeline.pose.models.pose import BlazePose, BodyAndFeet, MoveNetPose, PoseBatch, RTMPose, TinyPose
 from pipeline.pose.pose2dfile import FEET, HAND_POINTS, Poses, SegmentInfo, write_pose2d
-from pipeline.pose.tracking import iou_matrix
 
 
 @dataclass(frozen=True)

@@ -209,7 +209,7 @@ def people_cues(samples: list[Sample], seconds: int, cuts: list[float] = ()) -> 
     not a frame difference, so a periodic dance sampled at its own period does not look still.
     People are followed by box overlap within a shot (``cuts`` end every track).
     """
-    from pipeline.pose.tracking import iou_matrix
+    from pipeline.pose.boxes import iou_matrix
 
     people = np.zeros(seconds)
     tracks: dict[int, list[tuple[float, np.ndarray, np.ndarray]]] = {}  # track -> (time, joints, confident)

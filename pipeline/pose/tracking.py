@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.ingest.segmentvideo import SegmentVideo
+from pipeline.pose.boxes import iou_matrix
 
 # COCO keypoint sigmas (pycocotools), used by OKS.
 COCO_SIGMAS = np.array([0.26, 0.25, 0.25, 0.35, 0.35, 0.79, 0.79, 0.72, 0.72, 0.62, 0.62,
@@ -35,21 +36,6 @@ class TrackerOptions:
     velocity_smoothing: float = 0.6  # weight of the newest velocity estimate
     stitch_gap: int = 12         # a track starting this close to another's end, where that one stood, continues it
     stitch_iou: float = 0.5      # ... when its first boxes overlap the other's last sure ones this much
-
-
-def iou_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Pairwise IoU of boxes (Na x 4) and (Nb x 4)."""
-    if not len(a) or not len(b):
-        return np.zeros((len(a), len(b)))
-    x1 = np.maximum(a[:, None, 0], b[None, :, 0])
-    y1 = np.maximum(a[:, None, 1], b[None, :, 1])
-    x2 = np.minimum(a[:, None, 2], b[None, :, 2])
-    y2 = np.minimum(a[:, None, 3], b[None, :, 3])
-    inter = np.clip(x2 - x1, 0, None) * np.clip(y2 - y1, 0, None)
-    area_a = (a[:, 2] - a[:, 0]) * (a[:, 3] - a[:, 1])
-    area_b = (b[:, 2] - b[:, 0]) * (b[:, 3] - b[:, 1])
-    union = area_a[:, None] + area_b[None, :] - inter
-    return np.where(union > 0, inter / np.maximum(union, 1e-9), 0.0)
 
 
 def oks_matrix(kp_a: np.ndarray, kp_b: np.ndarray, areas: np.ndarray, min_score: float) -> np.ndarray:
