@@ -31,9 +31,10 @@ import numpy as np
 from pipeline.core.params import load_params, stage_params
 from pipeline.core.storage import write_json
 from pipeline.ingest.media import probe
-from pipeline.pose.hands import MAX_WRIST_OFFSET, MIN_PRESENCE, HandModels
+from pipeline.pose.hands import MAX_WRIST_OFFSET, HandModels
 from pipeline.pose.models.loading import load_pose_models, worker_files
 from pipeline.pose.pose2d import Pose2dOptions, collect_poses, estimate_segment
+from pipeline.pose.pose2dfile import MIN_PRESENCE
 
 CLIPS = ("dance_single_music_musepose.mp4", "group_duet_music.mp4", "group_trio_office_music.mp4")
 VARIANTS = {"forearm": {"hand_recrop": False}, "recrop": {"hand_recrop": True},

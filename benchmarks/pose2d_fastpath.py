@@ -48,7 +48,8 @@ from benchmarks.pose2d import configured, five_people, load_models
 from pipeline.ingest.media import ffmpeg_exe, probe
 from pipeline.ingest.segmentvideo import SegmentVideo
 from pipeline.pose.pose2d import collect_poses, estimate_segment
-from pipeline.pose.tracking import COCO_SIGMAS, assign_tracks
+from pipeline.pose.pose2dfile import COCO_SIGMAS
+from pipeline.pose.tracking import assign_tracks
 
 VISIBLE = 0.3
 REFERENCE = "fps=0,det_every=1"  # the models pose every frame, the detector runs on every frame

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.pose.hands import HAND_PARENTS, MIN_PRESENCE
+from pipeline.pose.pose2dfile import HAND_PARENTS, MIN_PRESENCE
 
 H36M_WRISTS = (13, 16)  # left, right wrist of the H36M-17 joints
 

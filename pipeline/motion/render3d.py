@@ -78,7 +78,7 @@ def _draw_smpl(image: np.ndarray, pts: np.ndarray) -> None:
 
 def _draw_hands(image: np.ndarray, hands: np.ndarray, colour: tuple[int, int, int] = (240, 240, 240)) -> None:
     """Each hand's 21 points (2 x 21 x 3 projected: NaN where none) as thin fingers, white by default."""
-    from pipeline.pose.hands import HAND_PARENTS
+    from pipeline.pose.pose2dfile import HAND_PARENTS
 
     for hand in hands:
         if not np.isfinite(hand).all():

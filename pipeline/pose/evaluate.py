@@ -26,8 +26,8 @@ import numpy as np
 
 from pipeline.core.errors import InputError
 from pipeline.pose.boxes import iou_matrix
-from pipeline.pose.models.pose import COCO17
 from pipeline.pose.pose2d import Pose2dOptions, find_people, lift_dark
+from pipeline.pose.pose2dfile import COCO17
 
 TORSO = (5, 12)  # left shoulder, right hip
 

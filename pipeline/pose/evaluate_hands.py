@@ -30,7 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.core.errors import InputError
-from pipeline.pose.hands import HAND_JOINTS, SIDES, Hand, HandLandmarks, HandRecrop, body_hands, region_from_box
+from pipeline.pose.hands import SIDES, Hand, HandLandmarks, HandRecrop, body_hands, region_from_box
+from pipeline.pose.pose2dfile import HAND_JOINTS
 
 PCK_SHARE = 0.2
 

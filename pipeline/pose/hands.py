@@ -4,7 +4,7 @@ The region is a rotated square, MediaPipe's convention (``models.pose.roi_transf
 box around the hand (an annotation), or from the body's forearm (elbow -> wrist: the hand lies
 beyond the wrist along it, about half a forearm long). A second pass takes MediaPipe's own
 region from the first pass's landmarks: wrist -> middle finger's knuckle pointing up, twice the
-hand's extent. Joints are in MediaPipe's order (``HAND_JOINTS``), which is also FreiHAND's,
+hand's extent. Joints are in MediaPipe's order (``pose2dfile.HAND_JOINTS``), which is also FreiHAND's,
 InterHand's and COCO-WholeBody's.
 
 ``body_hands`` is how pose2d (``pose2d.hands``) and ``eval hands`` find a posed person's hands: a
@@ -19,12 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipeline.pose.models.pose import roi_transform, to_image, warp
+from pipeline.pose.pose2dfile import MIN_PRESENCE
 
-HAND_JOINTS = ("wrist", *(f"{finger}_{k}" for finger in ("thumb", "index", "middle", "ring", "pinky")
-                          for k in range(1, 5)))
 WRIST, MIDDLE_KNUCKLE = 0, 9
-# Each hand point's parent: the wrist, then each finger from the palm out.
-HAND_PARENTS = (-1, 0, 1, 2, 3, 0, 5, 6, 7, 0, 9, 10, 11, 0, 13, 14, 15, 0, 17, 18, 19)
 SIDES = ("left", "right")
 # The hand's centre beyond the wrist, and the region's side, in forearm lengths (elbow -> wrist):
 # an adult hand is about 0.7 of a forearm from wrist to fingertip.
@@ -35,7 +32,6 @@ MIN_WRIST_SCORE = 0.3
 # A region under this side (pixels) holds a hand under about 10 px: the model sees a blur there
 # (hand_eval's 13-31 px hands of whole people: presence under 0.5 on 11 of 13, docs/reports/hands.md).
 MIN_REGION_PX = 20.0
-MIN_PRESENCE = 0.5  # MediaPipe's threshold: a hand the model is sure of
 MAX_WRIST_OFFSET = 0.5  # a hand whose wrist lies farther than this (forearms) from the body's is another's
 SEARCH_PER_FOREARM = 1.8  # the re-crop model's search region: about 2.6 hand lengths, as Holistic's from the pose
 

@@ -33,9 +33,25 @@ import pyarrow.parquet as pq
 from pipeline.core.storage import column_array, fixed_list, read_meta, write_parquet
 
 SCHEMA_VERSION = 5
-KEYPOINTS = 17
-FEET = 4          # left heel, right heel, left toe, right toe (pipeline.pose.models.pose.FEET)
-HAND_POINTS = 21  # per hand, MediaPipe's order (pipeline.pose.hands.HAND_JOINTS)
+# The keypoint layouts the file stores, read by every later stage and by the models that write them.
+COCO17 = (
+    "nose", "left_eye", "right_eye", "left_ear", "right_ear", "left_shoulder", "right_shoulder",
+    "left_elbow", "right_elbow", "left_wrist", "right_wrist", "left_hip", "right_hip",
+    "left_knee", "right_knee", "left_ankle", "right_ankle",
+)
+KEYPOINTS = len(COCO17)
+# COCO's per-keypoint OKS sigmas (pycocotools), for tracking's and the evaluations' similarity.
+COCO_SIGMAS = np.array([0.26, 0.25, 0.25, 0.35, 0.35, 0.79, 0.79, 0.72, 0.72, 0.62, 0.62,
+                        1.07, 1.07, 0.87, 0.87, 0.89, 0.89]) / 10.0
+FOOT_POINTS = ("left_heel", "right_heel", "left_toe", "right_toe")
+FEET = len(FOOT_POINTS)
+# MediaPipe's 21 hand points (also FreiHAND's, InterHand's and COCO-WholeBody's order) and each
+# point's parent: the wrist, then each finger from the palm out.
+HAND_JOINTS = ("wrist", *(f"{finger}_{k}" for finger in ("thumb", "index", "middle", "ring", "pinky")
+                          for k in range(1, 5)))
+HAND_PARENTS = (-1, 0, 1, 2, 3, 0, 5, 6, 7, 0, 9, 10, 11, 0, 13, 14, 15, 0, 17, 18, 19)
+HAND_POINTS = len(HAND_JOINTS)
+MIN_PRESENCE = 0.5  # a hand is sure from this presence on (MediaPipe's threshold); later stages trust only those
 POSE2D_SCHEMA = pa.schema(
     [
         ("frame", pa.int32()),            # frame number on the segment clock (round(time * fps))

@@ -24,7 +24,7 @@ from pipeline.core.storage import atomic_path
 from pipeline.core.timecode import format_time
 from pipeline.ingest.media import ffmpeg_exe
 from pipeline.ingest.segmentvideo import SegmentVideo
-from pipeline.pose.hands import HAND_PARENTS, MIN_PRESENCE
+from pipeline.pose.pose2dfile import HAND_PARENTS, MIN_PRESENCE
 
 # COCO-17 limbs, drawn between keypoint pairs.
 SKELETON = ((15, 13), (13, 11), (16, 14), (14, 12), (11, 12), (5, 11), (6, 12), (5, 6), (5, 7), (6, 8),

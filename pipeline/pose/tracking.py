@@ -19,10 +19,8 @@ import numpy as np
 
 from pipeline.ingest.segmentvideo import SegmentVideo
 from pipeline.pose.boxes import iou_matrix
+from pipeline.pose.pose2dfile import COCO_SIGMAS
 
-# COCO keypoint sigmas (pycocotools), used by OKS.
-COCO_SIGMAS = np.array([0.26, 0.25, 0.25, 0.35, 0.35, 0.79, 0.79, 0.72, 0.72, 0.62, 0.62,
-                        1.07, 1.07, 0.87, 0.87, 0.89, 0.89]) / 10.0
 UNTRACKED = -1
 
 

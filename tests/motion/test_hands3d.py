@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.motion.hands import fit_hand_skeleton, hand_shapes, world_hands
-from pipeline.pose.hands import HAND_PARENTS
+from pipeline.pose.pose2dfile import HAND_PARENTS
 
 
 def _hand(frames: int, seed: int = 0) -> np.ndarray:

@@ -21,7 +21,7 @@ from pipeline.motion.lifting.evaluate import (
 )
 from pipeline.motion.mocap.skeleton import coco_from_h36m
 from pipeline.motion.mocap.sources import MocapSequence, load_folder, load_source
-from pipeline.pose.tracking import COCO_SIGMAS
+from pipeline.pose.pose2dfile import COCO_SIGMAS
 
 
 def _walker(name: str = "mine/walk", frames: int = 60) -> MocapSequence:

@@ -16,13 +16,13 @@ from pipeline.core.errors import InputError, ModelMissingError
 from pipeline.pose.models import fetch
 from pipeline.pose.models.detector import Detections, RTMDetDetector, largest
 from pipeline.pose.models.pose import (
-    COCO17,
     MoveNetPose,
     RTMPose,
     crop_transform,
     decode_simcc,
 )
 from pipeline.pose.models.session import create_session
+from pipeline.pose.pose2dfile import COCO17
 
 
 @pytest.fixture(scope="module")

@@ -16,10 +16,10 @@ from pipeline.core.failures import read_failures
 from pipeline.core.storage import read_meta
 from pipeline.ingest.media import probe
 from pipeline.pose.models.detector import Detections, RTMDetDetector
-from pipeline.pose.models.pose import COCO17, MoveNetPose
+from pipeline.pose.models.pose import MoveNetPose
 from pipeline.pose.models.session import create_session
 from pipeline.pose.pose2d import Pose2dOptions, collect_poses, estimate_segment, find_people, lift_dark
-from pipeline.pose.pose2dfile import read_pose2d
+from pipeline.pose.pose2dfile import COCO17, read_pose2d
 from pipeline.pose.trackfile import read_tracks
 from tests.conftest import (
     ffmpeg,

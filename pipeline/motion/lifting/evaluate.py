@@ -35,7 +35,7 @@ from pipeline.core.errors import InputError
 from pipeline.motion.lifting.geometry import look_at, mpjpe, n_mpjpe, p_mpjpe, project, to_camera
 from pipeline.motion.mocap.sources import MocapSequence, first_seconds, keypoints_and_joints, resample
 from pipeline.motion.world.trajectory import assumed_focal
-from pipeline.pose.tracking import COCO_SIGMAS
+from pipeline.pose.pose2dfile import COCO_SIGMAS
 
 # The held-out sequences of the shared motion capture (name prefixes): whole performers where
 # a source names them (Perfume's Kashiyuka, DanceDB's Olivia, the 8-year-old of AnimatedDrawings,

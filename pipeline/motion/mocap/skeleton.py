@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.pose.models.pose import FEET
+from pipeline.pose.pose2dfile import FOOT_POINTS
 
 H36M17 = ("pelvis", "right_hip", "right_knee", "right_ankle", "left_hip", "left_knee", "left_ankle", "spine",
           "thorax", "neck_nose", "head", "left_shoulder", "left_elbow", "left_wrist", "right_shoulder",
@@ -23,12 +23,12 @@ COCO_H36M_SHARED = ((5, 11), (6, 14), (7, 12), (8, 15), (9, 13), (10, 16), (11, 
 WORLD_UP = np.array([0.0, 1.0, 0.0])
 
 # The feet, appended after the 17 body joints in 2D (COCO-17 + 4) and 3D (H36M-17 + 4), in the
-# 2D stage's order (FEET: left heel, right heel, left toe, right toe). The toe is the tip of the
+# 2D stage's order (FOOT_POINTS: left heel, right heel, left toe, right toe). The toe is the tip of the
 # toes, BlazePose's "foot index".
 FEET_FLIP = (1, 0, 3, 2)
 FEET_ANKLES_H36M = (6, 3, 6, 3)     # the ankle of each foot point, in H36M-17
 FEET_ANKLES_COCO = (15, 16, 15, 16)  # ... in COCO-17
-H36M21 = H36M17 + FEET
+H36M21 = H36M17 + FOOT_POINTS
 # Each foot drawn as a triangle: ankle-heel, ankle-toe, heel-toe (indices into the 21 joints).
 FOOT_BONES = ((6, 17), (6, 19), (17, 19), (3, 18), (3, 20), (18, 20))
 COCO21_FLIP = COCO_FLIP + tuple(17 + i for i in FEET_FLIP)
@@ -126,7 +126,7 @@ def floor_height(points: np.ndarray) -> float:
 
 
 def feet_array(heels: tuple[np.ndarray, np.ndarray], tips: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """T x 4 x 3 in ``FEET`` order from (left, right) heels and (left, right) toe tips."""
+    """T x 4 x 3 in ``FOOT_POINTS`` order from (left, right) heels and (left, right) toe tips."""
     return np.stack([heels[0], heels[1], tips[0], tips[1]], axis=1)
 
 

@@ -35,7 +35,7 @@ import numpy as np
 from pipeline.motion.mocap.skeleton import unit
 from pipeline.motion.smpl.retarget import frame, swing
 from pipeline.motion.smpl.skeleton import JOINTS, PARENTS
-from pipeline.pose.hands import MIN_PRESENCE
+from pipeline.pose.pose2dfile import MIN_PRESENCE
 
 FINGERS = ("index", "middle", "pinky", "ring", "thumb")  # SMPL-H's order within a hand
 # Each finger's hand-model points: its first joint (knuckle; the thumb's CMC), second, third, tip.

@@ -13,13 +13,8 @@ import numpy as np
 
 from pipeline.pose.models.batching import run_batched
 from pipeline.pose.models.normalize import IMAGENET
+from pipeline.pose.pose2dfile import FEET
 
-COCO17 = (
-    "nose", "left_eye", "right_eye", "left_ear", "right_ear", "left_shoulder", "right_shoulder",
-    "left_elbow", "right_elbow", "left_wrist", "right_wrist", "left_hip", "right_hip",
-    "left_knee", "right_knee", "left_ankle", "right_ankle",
-)
-FEET = ("left_heel", "right_heel", "left_toe", "right_toe")
 RGB_MEAN = np.array([123.675, 116.28, 103.53], np.float32)
 RGB_STD = np.array([58.395, 57.12, 57.375], np.float32)
 
@@ -29,7 +24,7 @@ class PoseBatch:
     """The poses of N people in one image."""
 
     keypoints: np.ndarray           # N x 17 x 3: COCO-17 (x, y, score), image pixels
-    feet: np.ndarray                # N x 4 x 3: FEET (x, y, score); score 0 where the model has no feet
+    feet: np.ndarray                # N x 4 x 3: FOOT_POINTS (x, y, score); 0 scores where the model has no feet
     world: np.ndarray | None = None  # N x 33 x 3: BlazePose world landmarks (m, origin between the hips)
 
     def __len__(self) -> int:
@@ -38,7 +33,7 @@ class PoseBatch:
     @staticmethod
     def body_only(keypoints: np.ndarray) -> "PoseBatch":
         keypoints = np.asarray(keypoints, np.float32).reshape(-1, 17, 3)
-        return PoseBatch(keypoints, np.zeros((len(keypoints), len(FEET), 3), np.float32))
+        return PoseBatch(keypoints, np.zeros((len(keypoints), FEET, 3), np.float32))
 
 
 def crop_transform(box: np.ndarray, out_w: int, out_h: int, padding: float = 1.25) -> np.ndarray:
@@ -61,7 +56,7 @@ def crop_transform(box: np.ndarray, out_w: int, out_h: int, padding: float = 1.2
 
 def to_image(points: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     """Map crop-pixel points (..., 2) back to the image through the inverse of the 2x3 ``matrix``."""
-    import cv2  # imported where used: the mocap skeleton's FEET reach this module in stages that need no OpenCV
+    import cv2  # imported where used, as in warp: reading the models' tables needs no OpenCV
 
     inverse = cv2.invertAffineTransform(np.asarray(matrix, np.float64))
     return points @ inverse[:, :2].T + inverse[:, 2]
@@ -289,7 +284,7 @@ class BlazePose:
     def _estimate(self, image: np.ndarray, boxes: np.ndarray, rois: list) -> PoseBatch:
         n = len(boxes)
         keypoints = np.zeros((n, 17, 3), np.float32)
-        feet = np.zeros((n, len(FEET), 3), np.float32)
+        feet = np.zeros((n, FEET, 3), np.float32)
         world = np.zeros((n, 33, 3), np.float32)
         matrices = [rois[i] if rois[i] is not None else self._first_crop(boxes[i])[0] for i in range(n)]
         results = self._run(image, matrices)  # every person's first (or only) pass in one call
@@ -368,7 +363,7 @@ class BodyAndFeet:
                 for roi, box in zip(rois, boxes)]
         feet = self.feet.estimate_in_rois(image, rois, boxes)
         moved = feet.feet.copy()
-        for side, ankle in ((0, 15), (1, 16)):  # FEET: left heel, right heel, left toe, right toe
+        for side, ankle in ((0, 15), (1, 16)):  # FOOT_POINTS: left heel, right heel, left toe, right toe
             shift = body.keypoints[:, ankle, :2] - feet.keypoints[:, ankle, :2]
             moved[:, [side, side + 2], :2] += shift[:, None, :]
         return PoseBatch(body.keypoints, moved, feet.world)
