@@ -25,7 +25,7 @@ from pipeline.core.storage import code_fingerprint, fingerprint, read_meta, sha2
 log = logging.getLogger("dance3d.clean")
 UNANNOTATED = ("accept", "skip")
 CODE = code_fingerprint(pipeline.annotate.clean, pipeline.annotate.clipfile, pipeline.annotate.manifests,
-                        pipeline.annotate.proposals, "pipeline.pose.tracking")
+                        pipeline.annotate.proposals, "pipeline.pose.tracking", "pipeline.pose.pose2dfile")
 
 
 def run(root: Path) -> None:

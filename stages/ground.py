@@ -20,7 +20,7 @@ CODE = code_fingerprint(*(f"pipeline.motion.world.{name}" for name in (
     "grounding", "contact", "gravity", "trajectory", "rotations", "worldfile", "scene", "bones", "segment")),
     "pipeline.motion.hands", "pipeline.motion.smpl.retarget", "pipeline.motion.smpl.kinematics",
     "pipeline.motion.smpl.skeleton", "pipeline.motion.smpl.hands", "pipeline.motion.mocap.skeleton",
-    "pipeline.pose.hands")
+    "pipeline.pose.pose2dfile")
 
 
 def run(root: Path) -> None:

@@ -20,7 +20,7 @@ CODE = code_fingerprint("pipeline.motion.lifting.infer", "pipeline.motion.world.
                         "pipeline.motion.world.trajectory", "pipeline.motion.world.bones",  # the root path, rays
                         "pipeline.motion.resample",  # the contact model's time axis
                         "pipeline.motion.smoothing",  # the 2D's denoising
-                        "pipeline.motion.hands", "pipeline.pose.hands")
+                        "pipeline.motion.hands", "pipeline.pose.pose2dfile")  # the hands: layout, sure presence
 
 
 def run(root: Path) -> None:

@@ -21,7 +21,7 @@ from pipeline.pose.pose2dfile import SCHEMA_VERSION, SegmentInfo
 
 log = logging.getLogger("dance3d.pose2d")
 CODE = code_fingerprint("pipeline.pose.pose2d", "pipeline.pose.pose2dfile", "pipeline.pose.hands",
-                        "pipeline.pose.models.detector",
+                        "pipeline.pose.models.detector", "pipeline.pose.boxes",
                         "pipeline.pose.models.pose", "pipeline.pose.models.normalize", "pipeline.pose.keyframes",
                         "pipeline.pose.parts", "pipeline.ingest.media", "pipeline.ingest.segmentvideo")
 

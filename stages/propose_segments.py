@@ -25,7 +25,7 @@ from pipeline.pose.proposed import SCHEMA_VERSION
 
 log = logging.getLogger("dance3d.propose_segments")
 CODE = code_fingerprint("pipeline.pose.propose", "pipeline.ingest.shots",  # the cues, the cuts
-                        "pipeline.pose.pose2d", "pipeline.pose.models.pose", "pipeline.pose.tracking",  # people
+                        "pipeline.pose.pose2d", "pipeline.pose.models.pose", "pipeline.pose.boxes",  # people
                         "pipeline.ingest.segmentvideo", "pipeline.ingest.media", "pipeline.ingest.trim")  # frames
 
 

@@ -18,7 +18,8 @@ from pipeline.ingest.catalog import read_index
 from pipeline.ingest.segmentvideo import SegmentVideo
 from pipeline.pose.trackfile import SCHEMA_VERSION
 
-CODE = code_fingerprint("pipeline.pose.tracking", "pipeline.pose.qc", "pipeline.pose.trackfile")
+CODE = code_fingerprint("pipeline.pose.tracking", "pipeline.pose.qc", "pipeline.pose.trackfile",
+                        "pipeline.pose.boxes", "pipeline.pose.pose2dfile")  # IoU, the OKS sigmas
 
 
 def run(root: Path) -> None:

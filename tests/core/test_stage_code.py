@@ -1,9 +1,11 @@
 """What a stage's outputs are made from is what makes DVC and the stage redo them: every module a
-stage fingerprints (``code_fingerprint``, which redoes its items) is a dependency of the stage in
-dvc.yaml (which re-runs it), and the modules a stage's files are computed by are fingerprinted."""
+stage can import, and every module it fingerprints (``code_fingerprint``, which redoes its items),
+is a dependency of the stage in dvc.yaml (which re-runs it), and the modules a stage's files are
+computed by are fingerprinted."""
 
 from __future__ import annotations
 
+import ast
 import importlib
 import importlib.util
 from pathlib import Path
@@ -47,11 +49,13 @@ COMPUTED_BY = {
     "lift": {"pipeline.motion.lifting.geometry",  # the lifter's input normalisation
              "pipeline.motion.mocap.skeleton",  # the mirror tables of the flip averaging
              "pipeline.motion.world.bones", "pipeline.motion.resample",  # the root's skeleton, the contact's clock
-             "pipeline.pose.hands"},  # the hands' presence threshold
+             "pipeline.pose.pose2dfile"},  # the hand layout, the sure hands' presence
     "ground": {"pipeline.motion.smpl.hands", "pipeline.motion.smpl.retarget",  # SMPL and SMPL-H in the world files
-               "pipeline.motion.mocap.skeleton", "pipeline.pose.hands"},  # the feet and hand tables, rotations
-    "propose_segments": {"pipeline.ingest.shots", "pipeline.pose.pose2d", "pipeline.pose.tracking"},  # cuts, people
-    "clean": {"pipeline.pose.tracking"},  # the OKS of the identity proposals
+               "pipeline.motion.mocap.skeleton", "pipeline.pose.pose2dfile"},  # the feet and hand tables, rotations
+    "propose_segments": {"pipeline.ingest.shots", "pipeline.pose.pose2d", "pipeline.pose.boxes"},  # cuts, people
+    "pose2d": {"pipeline.pose.keyframes", "pipeline.pose.boxes"},  # which frames are posed, who is who between
+    "track": {"pipeline.pose.boxes", "pipeline.pose.pose2dfile"},  # IoU and OKS (COCO's sigmas)
+    "clean": {"pipeline.pose.tracking", "pipeline.pose.pose2dfile"},  # the OKS of the identity proposals
     "trim": {"pipeline.ingest.segments"},  # how annotation rows become segments
     "audio": {"pipeline.ingest.segmentvideo"},  # where a segment's audio is read
 }
@@ -60,3 +64,56 @@ COMPUTED_BY = {
 @pytest.mark.parametrize("stage", sorted(COMPUTED_BY))
 def test_a_stage_fingerprints_the_code_its_outputs_are_computed_by(stage: str, monkeypatch) -> None:
     assert COMPUTED_BY[stage] - set(fingerprinted(stage, monkeypatch)) == set()
+
+
+# How a stage runs, logs, names and stores its work, not what it computes: a change there is caught by
+# the tests, not redone in every project.
+PLUMBING = {f"pipeline.core.{name}" for name in (
+    "deferred", "errors", "executor", "failures", "ids", "itemstage", "malloc", "numba_cache", "params", "paths",
+    "stage", "storage", "tables", "threads")}
+
+
+def module_path(name: str) -> Path | None:
+    """The source file of a module of this project, or None for anything else."""
+    for path in (PROJECT / f"{name.replace('.', '/')}.py", PROJECT / name.replace(".", "/") / "__init__.py"):
+        if path.is_file():
+            return path
+    return None
+
+
+def imported(name: str) -> set[str]:
+    """The project's modules that ``name`` imports anywhere in its source (inside functions too) or names
+    as a string for later import (``Deferred("pipeline.x:f")``, ``code_fingerprint("pipeline.x")``)."""
+    path = module_path(name)
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                base = ".".join(package.split(".")[:len(package.split(".")) - node.level + 1] + [base] * bool(base))
+            found.update(f"{base}.{a.name}" if module_path(f"{base}.{a.name}") else base for a in node.names)
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value.startswith("pipeline."):
+            found.add(node.value.partition(":")[0])
+    return {m for m in found if m.startswith("pipeline") and module_path(m)}
+
+
+def import_closure(name: str) -> set[str]:
+    seen, todo = set(), [name]
+    while todo:
+        if (module := todo.pop()) not in seen:
+            seen.add(module)
+            todo.extend(imported(module))
+    return seen
+
+
+@pytest.mark.parametrize("stage", sorted(STAGES))
+def test_every_module_a_stage_imports_is_a_dvc_dependency_of_the_stage(stage: str) -> None:
+    """Else ``dvc repro`` after a change to that module leaves the stage's outputs as they were."""
+    deps = [PROJECT / d for d in STAGES[stage].get("deps", [])]
+    module = "stages." + STAGES[stage]["cmd"].split("stages.")[1].split()[0]
+    closure = import_closure(module) - PLUMBING
+    assert sorted(m for m in closure if not any(module_path(m) == d or d in module_path(m).parents
+                                                for d in deps)) == []
