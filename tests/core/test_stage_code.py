@@ -6,6 +6,7 @@ computed by are fingerprinted."""
 from __future__ import annotations
 
 import ast
+import functools
 import importlib
 import importlib.util
 from pathlib import Path
@@ -15,6 +16,7 @@ import yaml
 
 import pipeline.core.storage as storage
 from tests.conftest import PROJECT
+from tests.test_imports import import_graph
 
 
 def fingerprinted(stage: str, monkeypatch) -> list[str]:
@@ -73,39 +75,33 @@ PLUMBING = {f"pipeline.core.{name}" for name in (
     "stage", "storage", "tables", "threads")}
 
 
-def module_path(name: str) -> Path | None:
-    """The source file of a module of this project, or None for anything else."""
-    for path in (PROJECT / f"{name.replace('.', '/')}.py", PROJECT / name.replace(".", "/") / "__init__.py"):
-        if path.is_file():
-            return path
-    return None
+GRAPH = functools.cache(import_graph)
 
 
-def imported(name: str) -> set[str]:
-    """The project's modules that ``name`` imports anywhere in its source (inside functions too) or names
-    as a string for later import (``Deferred("pipeline.x:f")``, ``code_fingerprint("pipeline.x")``)."""
-    path = module_path(name)
-    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-    found: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.Import):
-            found.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom):
-            base = node.module or ""
-            if node.level:
-                base = ".".join(package.split(".")[:len(package.split(".")) - node.level + 1] + [base] * bool(base))
-            found.update(f"{base}.{a.name}" if module_path(f"{base}.{a.name}") else base for a in node.names)
+def module_path(name: str) -> Path:
+    path = PROJECT / f"{name.replace('.', '/')}.py"
+    return path if path.is_file() else PROJECT / name.replace(".", "/") / "__init__.py"
+
+
+def import_closure(stage_module: str) -> set[str]:
+    """The pipeline modules a stage module can import: those it imports or names for later import
+    (``Deferred("pipeline.x:f")``, ``code_fingerprint("pipeline.x")``: only stages name work so),
+    then everything they import, at the top or inside functions (the house's import graph)."""
+    graph = GRAPH()
+    named = set()
+    for node in ast.walk(ast.parse(module_path(stage_module).read_text())):
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("pipeline"):
+            named.update(f"{node.module}.{a.name}" if f"{node.module}.{a.name}" in graph else node.module
+                         for a in node.names)
+        elif isinstance(node, ast.Import):
+            named.update(a.name for a in node.names)
         elif isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value.startswith("pipeline."):
-            found.add(node.value.partition(":")[0])
-    return {m for m in found if m.startswith("pipeline") and module_path(m)}
-
-
-def import_closure(name: str) -> set[str]:
-    seen, todo = set(), [name]
+            named.add(node.value.partition(":")[0])
+    seen, todo = set(), [m for m in named if m in graph]
     while todo:
         if (module := todo.pop()) not in seen:
             seen.add(module)
-            todo.extend(imported(module))
+            todo.extend(graph[module])
     return seen
 
 
