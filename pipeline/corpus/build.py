@@ -28,8 +28,7 @@ from pipeline.corpus.windows import FPS, SCHEMA_VERSION, Window, split_of, windo
 from pipeline.ingest.catalog import read_index, read_ledger
 from pipeline.motion.mocap.skeleton import H36M17, H36M_BONES
 from pipeline.motion.motionfile import clip_frame_counts, read_motion
-from pipeline.motion.world.grounding import ROTATION_JOINTS
-from pipeline.motion.world.worldfile import read_world
+from pipeline.motion.world.worldfile import ROTATION_JOINTS, read_world
 from pipeline.music.alignment import (
     beat_align_score,
     beat_align_score_aistpp,

@@ -38,7 +38,7 @@ BEAT_DEFAULTS = {"beat_frames": [], "downbeat_frames": [], "motion_beat_frames":
                  "downbeat_times": [], "beat_level": "", "beat_level_reason": "", "beat_tracker": ""}
 CHROMA_DIMS = 12
 BONES = 16
-ROTATION_JOINTS = 23  # pipeline.motion.world.grounding.ROTATION_JOINTS (the BVH skeleton's joints)
+ROTATION_JOINTS = 23  # pipeline.motion.world.worldfile.ROTATION_JOINTS (the BVH skeleton's joints)
 
 
 def window_starts(first_frame: int, n_frames: int, window: int, hop: int) -> list[int]:

@@ -42,7 +42,8 @@ def test_a_segment_with_two_dancers_exports_one_sequence_a_group_loader_reads(mo
     from pipeline.ingest.media import ffmpeg_exe
     from pipeline.motion.mocap.sources import load_source, resample
     from pipeline.motion.world.grounding import ground_clip
-    from pipeline.motion.world.worldfile import world_clip, write_world
+    from pipeline.motion.world.segment import world_clip
+    from pipeline.motion.world.worldfile import write_world
     from pipeline.music.featurefile import features_table, write_features
 
     fps, n = 24.0, 145

@@ -149,7 +149,8 @@ def test_dancers_in_sync_agree_at_the_same_instant_and_not_when_shifted(mocap_di
     from pipeline.motion.mocap.sources import load_source, resample
     from pipeline.motion.quality import sync_ratio
     from pipeline.motion.world.grounding import ground_clip
-    from pipeline.motion.world.worldfile import world_clip, write_world
+    from pipeline.motion.world.segment import world_clip
+    from pipeline.motion.world.worldfile import write_world
 
     dance = resample(load_source(mocap_dir, "choreonet_c3d")[0], FPS).h36m[:240]
     rel = dance - dance[:, :1]
@@ -185,7 +186,7 @@ def test_the_group_render_shows_the_video_beside_every_dancer_on_the_floor(duo, 
     from pipeline.cli import main
     from pipeline.ingest.media import Frame
     from pipeline.motion.render_group import render_group
-    from pipeline.motion.world.worldfile import world_clip
+    from pipeline.motion.world.segment import world_clip
 
     clips, _, _ = duo
     scene = ground_scene(clips, FPS)

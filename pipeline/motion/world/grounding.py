@@ -35,15 +35,13 @@ from pipeline.motion.world.gravity import CameraEstimate, WorldFrame, to_world
 from pipeline.motion.world.rotations import BVH_JOINTS, solve_rotations
 from pipeline.motion.world.trajectory import floor_anchors, refine_root
 
-ROTATION_JOINTS = tuple(j.name for j in BVH_JOINTS)
-
 
 @dataclass(frozen=True)
 class GroundedClip:
     joints: np.ndarray        # T x 17 x 3 world (y up, floor y = 0), one skeleton, feet pinned
     contact: np.ndarray       # T x 2 bool: left, right foot on the floor
     bone_lengths: np.ndarray  # 16, metres, H36M_BONES order
-    rotations_6d: np.ndarray  # T x len(ROTATION_JOINTS) x 6: first two columns of each local rotation
+    rotations_6d: np.ndarray  # T x len(BVH_JOINTS) x 6: first two columns of each local rotation
     pitch_deg: float
     roll_deg: float
     cv_before: float          # largest bone-length CV before the skeleton fit

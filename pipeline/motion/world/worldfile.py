@@ -35,10 +35,11 @@ import pyarrow.parquet as pq
 
 from pipeline.core.storage import column_array, fixed_list, require_schema, write_parquet
 from pipeline.motion.motionfile import HANDS_FIELDS  # the same two hand columns, here in the world frame
-from pipeline.motion.world.grounding import ROTATION_JOINTS, GroundedClip
+from pipeline.motion.world.rotations import BVH_JOINTS
 
 SCHEMA_VERSION = 5  # 3: smpl_poses, smpl_trans and the clip's smpl_scaling; 4: hands, hand_presence;
 #                    5: smpl_hand_poses, the seen hands' wrists turned with the palms
+ROTATION_JOINTS = tuple(j.name for j in BVH_JOINTS)
 ROTATIONS = len(ROTATION_JOINTS)
 WORLD_SCHEMA = pa.schema([
     ("clip_id", pa.string()),
@@ -74,35 +75,6 @@ class WorldClip:
     hands: np.ndarray | None = None        # n x 2 x 21 x 3 world hands (None: not asked for; NaN: never seen)
     hand_presence: np.ndarray | None = None  # n x 2
     smpl_hand_poses: np.ndarray | None = None  # n x 90 SMPL-H's finger joints (facts["smpl_hands"]: rests)
-
-
-def world_clip(clip_id: str, track_id: int, frame: np.ndarray, time: np.ndarray, grounded: GroundedClip,
-               scene_scale: float = 1.0, hands: np.ndarray | None = None,
-               hand_presence: np.ndarray | None = None) -> WorldClip:
-    """A grounded clip as the world file stores it, retargeted onto the SMPL tree; with the motion's
-    wrist-relative ``hands`` (and their presence), its hands in the world."""
-    from pipeline.motion.hands import H36M_WRISTS, world_hands
-    from pipeline.motion.smpl.hands import rest_facts, retarget_hands
-    from pipeline.motion.smpl.kinematics import to_axis_angle
-    from pipeline.motion.smpl.retarget import retarget
-
-    smpl = retarget(grounded.joints, grounded.feet)
-    local, hand_poses = smpl.local, None
-    facts = {"bone_lengths": [round(float(x), 6) for x in grounded.bone_lengths],
-             "pitch_deg": round(grounded.pitch_deg, 2), "roll_deg": round(grounded.roll_deg, 2),
-             "bone_cv_before": round(grounded.cv_before, 5), "fit_moved_mm": round(1000 * grounded.fit_moved, 2),
-             "contact_share": round(float(grounded.contact.mean()), 4),
-             "contact_learned": grounded.planted is not None,
-             "skate_before_m_s": round(grounded.skate_before, 5), "skate_after_m_s": round(grounded.skate_after, 5),
-             "scene_scale": round(float(scene_scale), 4), "smpl_scaling": round(smpl.scale, 6)}
-    if hands is not None:
-        hands = world_hands(hands, hand_presence, grounded.camera.rotation, grounded.joints[:, list(H36M_WRISTS)])
-        fingers = retarget_hands(smpl.local, hands, hand_presence)
-        local, hand_poses = fingers.local, fingers.poses
-        facts["smpl_hands"] = rest_facts(fingers.rests)
-    return WorldClip(clip_id, track_id, frame, time, grounded.joints, grounded.feet, grounded.contact,
-                     grounded.planted, grounded.contact_probability, grounded.rotations_6d, facts,
-                     to_axis_angle(local), smpl.trans, hands, hand_presence, hand_poses)
 
 
 def _table(clips: list[WorldClip]) -> pa.Table:
