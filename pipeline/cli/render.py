@@ -60,14 +60,10 @@ def render_qc(root: Path, args: argparse.Namespace) -> int:
 def motion_clips(motion: Path) -> list:
     """Every clip of a motion file (data/pose3d, data/smooth or data/motion24); another file is
     refused with what it is and what to give instead."""
-    import pyarrow.parquet as pq
-
+    from pipeline.core.storage import read_schema
     from pipeline.motion.motionfile import read_clips
 
-    try:
-        columns = set(pq.read_schema(motion).names)
-    except (OSError, ValueError) as exc:  # pyarrow's ArrowInvalid (a ValueError) does not name the file
-        raise InputError(motion, f"not a Parquet file ({exc})") from None
+    columns = set(read_schema(motion).names)
     if "joints" not in columns or "interpolated" not in columns:
         raise InputError(motion, "is a world file (data/world): give it with --smpl, or give its segment's "
                                  "data/motion24 file" if "smpl_poses" in columns else

@@ -184,19 +184,24 @@ def item_files(folder: Path) -> list[Path]:
     return sorted(p for p in folder.glob("*.parquet") if not p.name.startswith(("_", "."))) if folder.exists() else []
 
 
-def read_meta(path: Path) -> dict[str, Any]:
-    """The dance3d metadata of a Parquet file ({} if it has none); a missing file, or one that is
-    not Parquet, is an InputError naming it (every contract's reader starts here)."""
+def read_schema(path: Path) -> pa.Schema:
+    """A Parquet file's schema; a missing file, or one that is not Parquet, is an InputError naming
+    it (every contract's reader starts here)."""
     from pipeline.core.errors import InputError
 
     try:
-        schema = pq.read_schema(path)
+        return pq.read_schema(path)
     except FileNotFoundError:
         raise InputError(path, "no such file") from None
     except IsADirectoryError:
         raise InputError(path, "a folder, not a Parquet file") from None
     except (pa.ArrowInvalid, OSError) as exc:
         raise InputError(path, f"not a Parquet file ({' '.join(str(exc).split())[:120]})") from None
+
+
+def read_meta(path: Path) -> dict[str, Any]:
+    """The dance3d metadata of a Parquet file ({} if it has none); see ``read_schema`` for bad files."""
+    schema = read_schema(path)
     raw = (schema.metadata or {}).get(META_KEY)
     return json.loads(raw) if raw else {}
 

@@ -140,6 +140,8 @@ def read_coco(annotations: Path):
     try:
         with contextlib.redirect_stdout(io.StringIO()):
             return COCO(str(annotations))
+    except FileNotFoundError:
+        raise InputError(annotations, "no such file") from None
     except (OSError, ValueError, KeyError, TypeError, json.JSONDecodeError) as exc:
         raise InputError(annotations, f"not a COCO keypoint annotation file: {exc}") from None
 

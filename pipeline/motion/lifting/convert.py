@@ -41,6 +41,8 @@ def load_official_state(path: Path) -> dict:
     """The ``model_pos`` state dict of a checkpoint file (tensors only; no code is unpickled)."""
     try:
         checkpoint = torch.load(path, map_location="cpu", weights_only=True)
+    except FileNotFoundError:
+        raise InputError(path, "no such file") from None
     except Exception as exc:
         raise InputError(path, f"cannot read the checkpoint ({type(exc).__name__}: {exc})") from None
     if not isinstance(checkpoint, dict) or "model_pos" not in checkpoint:
