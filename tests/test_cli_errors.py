@@ -81,6 +81,8 @@ def test_every_command_fails_in_one_line_without_a_traceback(words: tuple, parse
     named = (str(target) in last or target.name in last or "params.yaml" in last or str(empty) in last
              or "usage:" in err)
     assert named, f"{argv}: {last!r} names neither the input nor the project"
+    if how == "no such path" and f"{target}:" in last:  # a path named as the thing that is wrong
+        assert "no such" in last and "Errno" not in last, f"{argv}: {last!r} does not say the path is missing"
 
 
 def test_a_library_error_is_one_line_naming_its_file_and_debug_shows_the_traceback(tmp_path: Path, capsys,
@@ -115,3 +117,9 @@ def test_an_evaluation_names_its_missing_annotations_before_it_looks_for_any_mod
     code = main(["--root", str(tmp_path), "eval", what, "--annotations", str(missing), "--images", str(tmp_path)])
     err = capsys.readouterr().err
     assert code != 0 and err.count("\n") == 1 and str(missing) in err, err
+
+
+def test_eval_smpl_with_no_world_files_says_where_it_looked_and_what_makes_them(tmp_path: Path, capsys) -> None:
+    assert main(["--root", str(tmp_path), "eval", "smpl"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(tmp_path / "data" / "world") in err and "--mocap" in err

@@ -57,13 +57,18 @@ class Clip:
 
 
 def world_clips(root: Path) -> list[Clip]:
-    """The clips of ``root``'s data/world files."""
+    """The clips of ``root``'s data/world files; none is an InputError saying what makes them."""
+    from pipeline.core.errors import InputError
     from pipeline.core.paths import WORLD
     from pipeline.core.storage import item_files, read_meta
     from pipeline.motion.world.worldfile import read_world
 
+    files = item_files(root / WORLD)
+    if not files:
+        raise InputError(root / WORLD, "no world files: the ground stage makes them (dvc repro ground), "
+                                       "or measure motion capture with --mocap DIR")
     out = []
-    for path in item_files(root / WORLD):
+    for path in files:
         fps = float(read_meta(path).get("fps", 24.0))
         for c in read_world(path):
             out.append(Clip(path.stem, c.clip_id, c.joints, c.feet, checks.foot_planted(c.contact, c.planted), fps,
