@@ -79,14 +79,39 @@ def fingerprint(*parts: Any) -> str:
 
 
 def code_fingerprint(*modules: Any) -> str:
-    """A hash of the source of the modules that make an output: changed code redoes the items
+    """A hash of the code of the modules that make an output: changed code redoes the items
     (DVC re-runs the stage when its code changes; this makes the stage redo its items too).
+    Comments, docstrings and blank lines are not code: editing them redoes nothing.
     A module is given as itself or by its dotted name; a name is found without importing the
     module, so a stage with nothing to do need not load what its work imports."""
     h = hashlib.sha256()
     for module in modules:
-        h.update(Path(_source_file(module)).read_bytes())
+        h.update(code_text(Path(_source_file(module)).read_text(encoding="utf-8")).encode())
     return h.hexdigest()[:16]
+
+
+def code_text(source: str) -> str:
+    """Python source without its comments, docstrings and blank lines, otherwise as written. Text,
+    not an AST dump, so the same code gives the same text under every Python version."""
+    import ast
+    import io
+    import tokenize
+
+    lines = source.splitlines()
+    dropped: set[int] = set()  # 0-based lines that are a docstring, whole
+    for node in ast.walk(ast.parse(source)):
+        body = getattr(node, "body", None)
+        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and body:
+            first = body[0]
+            if (isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant)
+                    and isinstance(first.value.value, str)
+                    and not lines[first.lineno - 1][:first.col_offset].strip()):  # alone on its lines
+                dropped.update(range(first.lineno - 1, first.end_lineno))
+    for token in tokenize.generate_tokens(io.StringIO(source).readline):
+        if token.type == tokenize.COMMENT:  # a comment runs to the end of its line
+            row, col = token.start
+            lines[row - 1] = lines[row - 1][:col]
+    return "\n".join(line.rstrip() for i, line in enumerate(lines) if i not in dropped and line.strip())
 
 
 def _source_file(module: Any) -> str:

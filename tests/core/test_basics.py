@@ -207,3 +207,34 @@ def test_an_arrow_column_reads_into_numpy_as_pyarrow_reads_it_at_any_offset(valu
         assert np.array_equal(mine, array.to_numpy(zero_copy_only=False))
     with_nulls = pa.array([1.0, None, 3.0])
     assert np.isnan(to_numpy(with_nulls)[1])
+
+
+CODE = '''"""A module."""
+
+import math  # why
+
+
+def area(r):
+    """The area."""
+    # pi r squared
+    return math.pi * r * r  # exact enough
+'''
+
+
+@pytest.mark.parametrize("edited,same", [
+    (CODE.replace('"""The area."""', '"""The area of a disc of radius ``r`` — any unit."""'), True),
+    (CODE.replace("# pi r squared", "# pi r squared, as Archimedes knew\n    # (a second line)"), True),
+    (CODE.replace('"""A module."""', '"""A module,\nnow in two lines."""') + "\n\n", True),
+    (CODE.replace("r * r", "r ** 2"), False),
+    (CODE.replace("import math  # why", "import math  # why\nTAU = 2 * math.pi"), False),
+    (CODE.replace("    return", "    '''not a docstring: a statement'''\n    return"), False),
+])
+def test_a_code_fingerprint_is_the_code_not_its_comments_docstrings_or_blank_lines(
+        edited: str, same: bool, tmp_path: Path, monkeypatch) -> None:
+    """Editing what a module says about itself redoes no stage's items; editing what it does does."""
+    from pipeline.core.storage import code_fingerprint
+
+    (tmp_path / "before_edit.py").write_text(CODE)
+    (tmp_path / "after_edit.py").write_text(edited)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert (code_fingerprint("before_edit") == code_fingerprint("after_edit")) is same
