@@ -92,13 +92,14 @@ def code_fingerprint(*modules: Any) -> str:
 
 def code_text(source: str) -> str:
     """Python source without its comments, docstrings and blank lines, otherwise as written. Text,
-    not an AST dump, so the same code gives the same text under every Python version."""
+    not an AST dump, so the same code gives the same text under every Python version; the AST only
+    says where docstrings and string literals are (a ``#`` inside a string is code)."""
     import ast
-    import io
-    import tokenize
+    import re
 
     lines = source.splitlines()
     dropped: set[int] = set()  # 0-based lines that are a docstring, whole
+    strings: dict[int, list[tuple[int, int]]] = {}  # 0-based line -> byte spans inside string literals
     for node in ast.walk(ast.parse(source)):
         body = getattr(node, "body", None)
         if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and body:
@@ -107,11 +108,22 @@ def code_text(source: str) -> str:
                     and isinstance(first.value.value, str)
                     and not lines[first.lineno - 1][:first.col_offset].strip()):  # alone on its lines
                 dropped.update(range(first.lineno - 1, first.end_lineno))
-    for token in tokenize.generate_tokens(io.StringIO(source).readline):
-        if token.type == tokenize.COMMENT:  # a comment runs to the end of its line
-            row, col = token.start
-            lines[row - 1] = lines[row - 1][:col]
-    return "\n".join(line.rstrip() for i, line in enumerate(lines) if i not in dropped and line.strip())
+        if isinstance(node, ast.JoinedStr) or (isinstance(node, ast.Constant) and isinstance(node.value, (str, bytes))):
+            for row in range(node.lineno - 1, node.end_lineno):
+                strings.setdefault(row, []).append((node.col_offset if row == node.lineno - 1 else 0,
+                                                    node.end_col_offset if row == node.end_lineno - 1 else 1 << 30))
+    kept = []
+    for row, line in enumerate(lines):
+        if row in dropped:
+            continue
+        if "#" in line:  # a comment starts at the first # outside every string (AST columns count bytes)
+            raw = line.encode()
+            hashes = (m.start() for m in re.finditer(b"#", raw))
+            cut = next((i for i in hashes if not any(a <= i < b for a, b in strings.get(row, ()))), None)
+            line = line if cut is None else raw[:cut].decode()
+        if line.strip():
+            kept.append(line.rstrip())
+    return "\n".join(kept)
 
 
 def _source_file(module: Any) -> str:

@@ -213,6 +213,8 @@ CODE = '''"""A module."""
 
 import math  # why
 
+TAG = "#1 of 2"  # a hash inside a string is code
+
 
 def area(r):
     """The area."""
@@ -228,6 +230,8 @@ def area(r):
     (CODE.replace("r * r", "r ** 2"), False),
     (CODE.replace("import math  # why", "import math  # why\nTAU = 2 * math.pi"), False),
     (CODE.replace("    return", "    '''not a docstring: a statement'''\n    return"), False),
+    (CODE.replace('"#1 of 2"', '"#2 of 2"'), False),
+    (CODE.replace('"#1 of 2"  #', '"#1 of 2"  ## '), True),
 ])
 def test_a_code_fingerprint_is_the_code_not_its_comments_docstrings_or_blank_lines(
         edited: str, same: bool, tmp_path: Path, monkeypatch) -> None:
