@@ -106,7 +106,8 @@ def code_text(source: str) -> str:
             first = body[0]
             if (isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant)
                     and isinstance(first.value.value, str)
-                    and not lines[first.lineno - 1][:first.col_offset].strip()):  # alone on its lines
+                    and not lines[first.lineno - 1][:first.col_offset].strip()  # alone on its lines
+                    and not lines[first.end_lineno - 1].encode()[first.end_col_offset:].strip()):
                 dropped.update(range(first.lineno - 1, first.end_lineno))
         if isinstance(node, ast.JoinedStr) or (isinstance(node, ast.Constant) and isinstance(node.value, (str, bytes))):
             for row in range(node.lineno - 1, node.end_lineno):

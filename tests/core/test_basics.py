@@ -231,6 +231,7 @@ def area(r):
     (CODE.replace("import math  # why", "import math  # why\nTAU = 2 * math.pi"), False),
     (CODE.replace("    return", "    '''not a docstring: a statement'''\n    return"), False),
     (CODE.replace('"#1 of 2"', '"#2 of 2"'), False),
+    (CODE.replace('"""The area."""', '"""The area."""; r = abs(r)'), False),
     (CODE.replace('"#1 of 2"  #', '"#1 of 2"  ## '), True),
 ])
 def test_a_code_fingerprint_is_the_code_not_its_comments_docstrings_or_blank_lines(
