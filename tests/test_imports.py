@@ -82,3 +82,19 @@ def test_the_ingest_floor_imports_nothing_above_it() -> None:
     uphill = {m: sorted(t for t in targets if not t.startswith(("pipeline.core", "pipeline.ingest")))
               for m, targets in graph.items() if m.startswith("pipeline.ingest")}
     assert {m: t for m, t in uphill.items() if t} == {}
+
+
+# A file contract (schema, reader, writer) stands on core and on the contracts it builds on, so a stage
+# that only reads a file does not import the code that computes it.
+CONTRACTS = ("pipeline.pose.pose2dfile", "pipeline.pose.trackfile", "pipeline.pose.proposed",
+             "pipeline.annotate.clipfile", "pipeline.motion.motionfile", "pipeline.motion.world.worldfile",
+             "pipeline.music.featurefile")
+# The world file's rotations follow the BVH skeleton's joint order, which is defined with the solver.
+SKELETON_TABLES = {"pipeline.motion.world.worldfile": {"pipeline.motion.world.rotations"}}
+
+
+def test_a_file_contract_imports_only_core_and_other_contracts() -> None:
+    graph = import_graph()
+    computed = {m: sorted(t for t in graph[m] - SKELETON_TABLES.get(m, set())
+                          if not t.startswith("pipeline.core") and t not in CONTRACTS) for m in CONTRACTS}
+    assert {m: t for m, t in computed.items() if t} == {}
