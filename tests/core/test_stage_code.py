@@ -111,5 +111,6 @@ def test_every_module_a_stage_imports_is_a_dvc_dependency_of_the_stage(stage: st
     deps = [PROJECT / d for d in STAGES[stage].get("deps", [])]
     module = "stages." + STAGES[stage]["cmd"].split("stages.")[1].split()[0]
     closure = import_closure(module) - PLUMBING
-    assert sorted(m for m in closure if not any(module_path(m) == d or d in module_path(m).parents
-                                                for d in deps)) == []
+    missing = sorted(module_path(m).relative_to(PROJECT).as_posix() for m in closure
+                     if not any(module_path(m) == d or d in module_path(m).parents for d in deps))
+    assert missing == [], f"add to {stage}'s deps in dvc.yaml: {missing}"
