@@ -18,20 +18,22 @@ def module_name(path: Path) -> str:
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
+def imported(tree: ast.AST, modules) -> set[str]:
+    """The pipeline modules a parsed file imports, at the top or inside functions."""
+    targets = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("pipeline"):
+            for alias in node.names:  # `from pipeline.x import y` names module x.y when y is one
+                child = f"{node.module}.{alias.name}"
+                targets.add(child if child in modules else node.module)
+        elif isinstance(node, ast.Import):
+            targets.update(a.name for a in node.names if a.name.startswith("pipeline"))
+    return {t for t in targets if t in modules}
+
+
 def import_graph() -> dict[str, set[str]]:
     modules = {module_name(p): p for p in PIPELINE.rglob("*.py")}
-    graph: dict[str, set[str]] = {}
-    for name, path in modules.items():
-        targets = set()
-        for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("pipeline"):
-                for alias in node.names:  # `from pipeline.x import y` names module x.y when y is one
-                    child = f"{node.module}.{alias.name}"
-                    targets.add(child if child in modules else node.module)
-            elif isinstance(node, ast.Import):
-                targets.update(a.name for a in node.names if a.name.startswith("pipeline"))
-        graph[name] = {t for t in targets if t in modules and t != name}
-    return graph
+    return {name: imported(ast.parse(path.read_text()), modules) - {name} for name, path in modules.items()}
 
 
 def loops(graph: dict[str, set[str]]) -> list[list[str]]:

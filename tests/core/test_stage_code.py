@@ -16,7 +16,7 @@ import yaml
 
 import pipeline.core.storage as storage
 from tests.conftest import PROJECT
-from tests.test_imports import import_graph
+from tests.test_imports import import_graph, imported
 
 
 def fingerprinted(stage: str, monkeypatch) -> list[str]:
@@ -88,15 +88,10 @@ def import_closure(stage_module: str) -> set[str]:
     (``Deferred("pipeline.x:f")``, ``code_fingerprint("pipeline.x")``: only stages name work so),
     then everything they import, at the top or inside functions (the house's import graph)."""
     graph = GRAPH()
-    named = set()
-    for node in ast.walk(ast.parse(module_path(stage_module).read_text())):
-        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("pipeline"):
-            named.update(f"{node.module}.{a.name}" if f"{node.module}.{a.name}" in graph else node.module
-                         for a in node.names)
-        elif isinstance(node, ast.Import):
-            named.update(a.name for a in node.names)
-        elif isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value.startswith("pipeline."):
-            named.add(node.value.partition(":")[0])
+    tree = ast.parse(module_path(stage_module).read_text())
+    named = imported(tree, graph) | {node.value.partition(":")[0] for node in ast.walk(tree)
+                                     if isinstance(node, ast.Constant) and isinstance(node.value, str)
+                                     and node.value.startswith("pipeline.")}
     seen, todo = set(), [m for m in named if m in graph]
     while todo:
         if (module := todo.pop()) not in seen:
