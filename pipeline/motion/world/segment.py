@@ -9,7 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
+from pipeline.motion.hands import H36M_WRISTS, world_hands
 from pipeline.motion.motionfile import read_motion
+from pipeline.motion.smpl.hands import rest_facts, retarget_hands
+from pipeline.motion.smpl.kinematics import to_axis_angle
+from pipeline.motion.smpl.retarget import retarget
 from pipeline.motion.world.contact import ContactRules
 from pipeline.motion.world.grounding import GroundedClip
 from pipeline.motion.world.scene import ground_scene
@@ -47,11 +51,6 @@ def world_clip(clip_id: str, track_id: int, frame: np.ndarray, time: np.ndarray,
                hand_presence: np.ndarray | None = None) -> WorldClip:
     """A grounded clip as the world file stores it, retargeted onto the SMPL tree; with the motion's
     wrist-relative ``hands`` (and their presence), its hands in the world."""
-    from pipeline.motion.hands import H36M_WRISTS, world_hands
-    from pipeline.motion.smpl.hands import rest_facts, retarget_hands
-    from pipeline.motion.smpl.kinematics import to_axis_angle
-    from pipeline.motion.smpl.retarget import retarget
-
     smpl = retarget(grounded.joints, grounded.feet)
     local, hand_poses = smpl.local, None
     facts = {"bone_lengths": [round(float(x), 6) for x in grounded.bone_lengths],
