@@ -135,9 +135,9 @@ class ContactRules:
 
     @classmethod
     def from_params(cls, ground: Mapping) -> ContactRules:
-        return cls(float(ground.get("contact_threshold", PLANTED_PROBABILITY)),
-                   int(ground.get("min_contact_frames", MIN_PLANTED_FRAMES)),
-                   float(ground.get("contact_hold", HOLD_PROBABILITY)))
+        return cls(float(ground.get("contact_threshold", cls.threshold)),
+                   int(ground.get("min_contact_frames", cls.min_frames)),
+                   float(ground.get("contact_hold", cls.hold)))
 
 
 def planted_points(probability: np.ndarray, threshold: float = PLANTED_PROBABILITY,
